@@ -1,0 +1,22 @@
+//! Command-line front ends: each binary in `src/bin/` parses its arguments with clap
+//! here and calls the library. Nothing in the numerical cores depends on this module.
+
+use crate::Error;
+
+/// Runs a binary's main function and turns an error into one line on stderr and a
+/// non-zero exit status (2 for "not implemented yet", 1 for any other failure).
+pub fn exit_with(program: &str, result: crate::Result<()>) -> ! {
+    match result {
+        Ok(()) => std::process::exit(0),
+        Err(err) => {
+            let line = err.to_string().replace('\n', " ");
+            eprintln!("{program}: error: {line}");
+            std::process::exit(err.exit_code())
+        }
+    }
+}
+
+/// Shorthand for the "not implemented yet" error of a planned solver.
+pub fn not_implemented(what: &str) -> Error {
+    Error::NotImplemented(what.to_string())
+}
