@@ -10,5 +10,9 @@
 
 pub mod cli;
 pub mod error;
+pub mod geometry;
+pub mod mesh;
+pub mod output;
+pub mod scene;
 
 pub use error::{Error, Result};

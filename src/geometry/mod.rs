@@ -1,0 +1,1 @@
+//! Geometry helpers: convex polyhedra, mass properties and shape statistics of stones.
