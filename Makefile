@@ -1,0 +1,80 @@
+# ballast: geometry -> meshes -> solvers -> VTK/CSV -> charts.
+#
+#   make          set up what is missing, build, mesh everything, run the default scene
+#   make test     set up, check formatting and lints, run every test
+#   make meshes   mesh every geo/*.geo and the stone family
+#   make clean    remove build outputs, meshes and results (keeps the venv)
+#
+# Every step has real file dependencies: a second `make` does nothing.
+
+SHELL := /bin/bash
+.DEFAULT_GOAL := all
+.DELETE_ON_ERROR:
+
+PYTHON3 ?= python3
+CARGO ?= cargo
+VENV := .venv
+PY := $(VENV)/bin/python
+VENV_STAMP := $(VENV)/.installed
+# The gmsh wheel's bin/gmsh is a Python script: run it with the venv's python.
+GMSH := $(PY) $(VENV)/bin/gmsh
+# The CLI exits 0 on a .geo syntax error unless told to abort on errors.
+GMSH_FLAGS := -3 -format msh41 -setnumber General.AbortOnError 2 -v 2
+
+RELEASE := target/release
+BINARIES := $(addprefix $(RELEASE)/,ballast-pack ballast-nscd ballast-qdem ballast-fem ballast-post)
+RUST_SOURCES := $(shell find src -name '*.rs') Cargo.toml Cargo.lock
+
+# Objects meshed from geo/ by the pattern rule (the stone is meshed per family member).
+OBJECT_MESHES := $(patsubst geo/%.geo,meshes/%.msh,$(filter-out geo/stone.geo,$(wildcard geo/*.geo)))
+
+export BALLAST_PYTHON := $(abspath $(PY))
+
+.PHONY: all setup build meshes gallery test lint clean distclean readme-figure
+
+all: gallery
+
+## Set-up: a project-local venv with the pinned Python tools.
+setup: $(VENV_STAMP)
+$(VENV_STAMP): tools/requirements.txt
+	@test -x $(PY) || $(PYTHON3) -m venv $(VENV)
+	$(PY) -m pip install --quiet --disable-pip-version-check -r tools/requirements.txt
+	@touch $@
+
+## Build: the release binaries (cargo only runs when a source changed).
+build: $(BINARIES)
+$(BINARIES) &: $(RUST_SOURCES)
+	$(CARGO) build --release --locked --bins
+	@touch $(BINARIES)
+
+## Meshes: one rule for every parameterised gmsh source.
+meshes: $(OBJECT_MESHES) stones
+meshes/%.msh: geo/%.geo | $(VENV_STAMP)
+	@mkdir -p $(@D)
+	$(GMSH) $< $(GMSH_FLAGS) -o $@
+
+-include mk/stones.mk
+
+## The default scene: every mesh checked, exported to VTK and tabulated.
+gallery: results/mesh_gallery/summary.json
+results/mesh_gallery/summary.json: scenes/mesh_gallery.toml $(OBJECT_MESHES) $(STONE_MESHES) $(RELEASE)/ballast-post
+	$(RELEASE)/ballast-post meshes $< --out $(@D)
+
+## README picture, rendered from the gallery's VTK files.
+readme-figure: docs/img/meshes.png
+docs/img/meshes.png: tools/render_meshes.py results/mesh_gallery/summary.json | $(VENV_STAMP)
+	@mkdir -p $(@D)
+	$(PY) $< results/mesh_gallery $@
+
+## Tests: formatting, lints, then every test (they read what the real tools write).
+test: $(VENV_STAMP) $(OBJECT_MESHES)
+	$(CARGO) fmt --check
+	$(CARGO) clippy --release --locked --all-targets -- -D warnings
+	$(CARGO) test --release --locked
+
+clean:
+	$(CARGO) clean
+	rm -rf results meshes/*.msh meshes/stones
+
+distclean: clean
+	rm -rf $(VENV)
