@@ -14,6 +14,9 @@
 //!
 //! A preset is a table `[preset.NAME]` of the scene file deep-merged over the base
 //! (`quick` for tests, `paper` for the published sizes).
+//!
+//! Avoid `#[serde(flatten)]` and untagged enums in scene structs: serde then buffers
+//! the values, which loses both `deny_unknown_fields` and the key path of errors.
 
 mod load;
 mod material;
