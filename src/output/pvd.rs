@@ -195,10 +195,9 @@ fn parse_entries(text: &str) -> std::result::Result<Vec<PvdEntry>, String> {
     let mut entries = Vec::new();
     let mut rest = text;
     while let Some(start) = rest.find("<DataSet") {
-        let line = text[..text.len() - rest.len() + start]
-            .lines()
-            .count()
-            .max(1);
+        let line = 1 + text[..text.len() - rest.len() + start]
+            .matches('\n')
+            .count();
         let after = &rest[start + "<DataSet".len()..];
         let end = after
             .find('>')

@@ -17,10 +17,11 @@ use crate::{Error, Result};
 /// zlib level: fast, and most of the gain on floating-point state.
 const COMPRESSION_LEVEL: u32 = 5;
 
-/// vtkio's compressed block size. vtkio 0.7.0-rc2 mislabels an array whose byte size is a
-/// multiple of this (zero included): it writes an extra empty block with "last block
-/// full", and VTK then expects one block more than there is. Such files are written
-/// uncompressed.
+/// vtkio's compressed block size. For an array whose byte size is a multiple of this (zero
+/// included) vtkio 0.7.0-rc2 writes one empty block too many while its header says "last
+/// block full", so the header claims 32 KiB more than the data. VTK 9.7 reads such files
+/// (it decompresses only the blocks it needs), but the header breaks the format, so those
+/// rare files are written uncompressed instead.
 const VTKIO_BLOCK_BYTES: usize = 32768;
 
 /// Writes `grid` to `path` as a binary VTK XML unstructured grid, atomically.
@@ -69,7 +70,31 @@ fn encode(grid: &Grid, compress: bool) -> std::result::Result<Vec<u8>, String> {
     let mut bytes = Vec::new();
     file.write(&mut bytes)
         .map_err(|e| format!("VTK encoding failed: {e}"))?;
+    add_zero_counts(&mut bytes, grid)?;
     Ok(bytes)
+}
+
+/// vtkio 0.7.0-rc2 leaves out `NumberOfPoints`/`NumberOfCells` when they are zero, and
+/// VTK refuses such a piece; put them back (an empty contact network is an ordinary frame).
+fn add_zero_counts(bytes: &mut Vec<u8>, grid: &Grid) -> std::result::Result<(), String> {
+    let mut missing = String::new();
+    if grid.point_count() == 0 {
+        missing.push_str(" NumberOfPoints=\"0\"");
+    }
+    if grid.cell_count() == 0 {
+        missing.push_str(" NumberOfCells=\"0\"");
+    }
+    if missing.is_empty() {
+        return Ok(());
+    }
+    let tag = b"<Piece";
+    let at = bytes
+        .windows(tag.len())
+        .position(|window| window == tag)
+        .ok_or("VTK encoding failed: no Piece element")?;
+    let insert_at = at + tag.len();
+    bytes.splice(insert_at..insert_at, missing.bytes());
+    Ok(())
 }
 
 fn cell_type(kind: CellKind) -> CellType {
