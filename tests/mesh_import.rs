@@ -32,6 +32,7 @@ fn temp_file(name: &str, bytes: &[u8]) -> (tempfile::TempDir, PathBuf) {
 fn error_line(path: &Path) -> String {
     let error = read_msh(path).expect_err("the bad file must be refused");
     let line = error.to_string();
+    println!("{line}");
     assert!(!line.contains('\n'), "error is not one line: {line}");
     let file_name = path.file_name().unwrap().to_str().unwrap();
     assert!(

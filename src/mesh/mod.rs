@@ -137,3 +137,46 @@ impl TetMesh {
         best.0
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn corner_nodes() -> Vec<Point3<f64>> {
+        vec![
+            Point3::origin(),
+            Point3::new(1.0, 0.0, 0.0),
+            Point3::new(0.0, 1.0, 0.0),
+            Point3::new(0.0, 0.0, 1.0),
+        ]
+    }
+
+    #[test]
+    fn from_parts_checks_like_the_reader() {
+        let mesh = TetMesh::from_parts("gen", corner_nodes(), vec![[0, 1, 2, 3]], vec![]).unwrap();
+        assert_eq!(mesh.boundary.len(), 4);
+        assert_eq!(mesh.node_nearest(Point3::new(0.9, 0.2, 0.0)), 1);
+        let error = |tets: Vec<[u32; 4]>, nodes: Vec<Point3<f64>>| {
+            TetMesh::from_parts("gen", nodes, tets, vec![])
+                .unwrap_err()
+                .to_string()
+        };
+        assert!(error(vec![[0, 2, 1, 3]], corner_nodes()).contains("tetra 0 is inverted"));
+        assert!(error(vec![[0, 1, 2, 7]], corner_nodes()).contains("refers to node 7"));
+        let mut five = corner_nodes();
+        five.push(Point3::new(5.0, 5.0, 5.0));
+        assert!(error(vec![[0, 1, 2, 3]], five).contains("node 4 is used by no tetrahedron"));
+        assert!(error(vec![], corner_nodes()).contains("no tetrahedra"));
+    }
+
+    #[test]
+    fn require_groups_on_a_mesh_without_groups() {
+        let mesh =
+            TetMesh::from_parts("gen.msh", corner_nodes(), vec![[0, 1, 2, 3]], vec![]).unwrap();
+        assert_eq!(
+            mesh.require_groups(&["tip"]).unwrap_err().to_string(),
+            "gen.msh: physical group \"tip\" is missing (the mesh has no physical groups)"
+        );
+        assert!(mesh.require_groups(&[]).is_ok());
+    }
+}

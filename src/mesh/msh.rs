@@ -142,24 +142,32 @@ fn parse_physical_names(bytes: &[u8]) -> std::result::Result<HashMap<(i32, i32),
 fn parse_with_mshio(bytes: &[u8]) -> std::result::Result<MshFile<u64, i32, f64>, String> {
     let parsed = std::panic::catch_unwind(|| {
         mshio::parse_msh_bytes(bytes).map_err(|error| {
+            // The backtrace runs from the innermost failure outwards; contexts say where.
             let backtrace = error.filtered_backtrace();
-            let Some((at, kind)) = backtrace.first() else {
-                return "malformed MSH data".to_string();
-            };
-            let offset = bytes.len() - at.len();
-            let context: Vec<String> = backtrace[1..]
+            let offset = backtrace
+                .first()
+                .map_or(0, |(at, _)| bytes.len() - at.len());
+            let place: Vec<String> = backtrace
                 .iter()
                 .rev()
-                .map(|(_, k)| k.to_string())
+                .filter_map(|(_, kind)| kind.context().map(str::to_string))
                 .collect();
-            let kind = kind.to_string();
-            let kind = kind.trim_end_matches('.');
-            if context.is_empty() {
-                format!("malformed MSH data at byte {offset}: {kind}")
+            let reason = if offset == bytes.len() {
+                "the file ends too early (truncated?)".to_string()
+            } else {
+                backtrace
+                    .iter()
+                    .find(|(_, kind)| kind.context().is_none())
+                    .map_or("unexpected bytes".to_string(), |(_, kind)| {
+                        kind.to_string().trim_end_matches('.').to_lowercase()
+                    })
+            };
+            if place.is_empty() {
+                format!("malformed MSH data at byte {offset}: {reason}")
             } else {
                 format!(
-                    "malformed MSH data at byte {offset} (in {}): {kind}",
-                    context.join(", ")
+                    "malformed MSH data at byte {offset} ({}): {reason}",
+                    place.join(" > ")
                 )
             }
         })
@@ -349,6 +357,11 @@ fn build_mesh(
             }
         }
     }
+    if msh.data.nodes.is_none() || msh.data.elements.is_none() {
+        return Err(invalid(
+            "the file has no $Nodes or no $Elements section (truncated?)".into(),
+        ));
+    }
     if tets.is_empty() {
         return Err(invalid(
             "the mesh has no 4-node tetrahedra (mesh the volume with `gmsh -3` and, if the file has physical groups, put the volume in one)".into(),
@@ -464,5 +477,92 @@ pub(crate) fn describe_boundary_error(
             name(tets[0] as usize),
             name(tets[1] as usize)
         ),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// One corner tetra with sparse node tags 10..40, an unnamed physical volume 5 and
+    /// a named physical surface on its z = 0 face.
+    const SPARSE_TET: &str = "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n\
+        $PhysicalNames\n1\n2 7 \"bottom face\"\n$EndPhysicalNames\n\
+        $Entities\n0 0 1 1\n1 0 0 0 1 1 0 1 7 0\n1 0 0 0 1 1 1 1 5 1 1\n$EndEntities\n\
+        $Nodes\n1 4 10 40\n3 1 0 4\n40\n10\n20\n30\n0 0 1\n0 0 0\n1 0 0\n0 1 0\n$EndNodes\n\
+        $Elements\n2 2 1 2\n2 1 2 1\n1 10 30 20\n3 1 4 1\n2 10 20 30 40\n$EndElements\n";
+
+    #[test]
+    fn sparse_tags_unnamed_groups_and_spaces_in_names() {
+        let mesh = read_msh_bytes(Path::new("sparse.msh"), SPARSE_TET.as_bytes()).unwrap();
+        // File order: node 40 is index 0, node 10 index 1, …
+        assert_eq!(mesh.nodes[0], Point3::new(0.0, 0.0, 1.0));
+        assert_eq!(mesh.tets, vec![[1, 2, 3, 0]]);
+        assert!((mesh.total_volume() - 1.0 / 6.0).abs() < 1e-15);
+        assert_eq!(mesh.boundary.len(), 4);
+        let bottom = mesh.group("bottom face").unwrap();
+        assert_eq!((bottom.dim, bottom.tag), (2, 7));
+        assert_eq!(bottom.triangles, vec![[1, 3, 2]]);
+        assert_eq!(bottom.nodes, vec![1, 2, 3]);
+        let volume = mesh.group("group_5").unwrap();
+        assert_eq!((volume.dim, volume.tets.clone()), (3, vec![0]));
+    }
+
+    #[test]
+    fn physical_names_errors_are_one_line() {
+        let cases = [
+            ("$PhysicalNames\n1\n2 7 \"a\"\n", "no $EndPhysicalNames"),
+            (
+                "$PhysicalNames\n2\n2 7 \"a\"\n$EndPhysicalNames\n",
+                "announces 2",
+            ),
+            (
+                "$PhysicalNames\n1\n2 7 a\n$EndPhysicalNames\n",
+                "should read",
+            ),
+            (
+                "$PhysicalNames\n1\n9 7 \"a\"\n$EndPhysicalNames\n",
+                "dimension 9",
+            ),
+            ("$PhysicalNames\nx\n$EndPhysicalNames\n", "number of names"),
+        ];
+        for (text, expected) in cases {
+            let error = parse_physical_names(text.as_bytes()).unwrap_err();
+            assert!(error.contains(expected), "{error}");
+            assert!(!error.contains('\n'));
+        }
+        assert!(parse_physical_names(b"$MeshFormat\n").unwrap().is_empty());
+    }
+
+    #[test]
+    fn header_checks() {
+        assert!(check_header(b"$MeshFormat\n4.1 0 8\n$EndMeshFormat\n").is_ok());
+        assert!(check_header(b"$MeshFormat\r\n4.1 1 8\r\n").is_ok());
+        assert!(check_header(b"$MeshFormat\n4.1\n")
+            .unwrap_err()
+            .contains("should read"));
+        assert!(check_header(b"")
+            .unwrap_err()
+            .contains("not a gmsh MSH file"));
+    }
+
+    #[test]
+    fn element_kinds_read_well() {
+        assert_eq!(element_kind(ElementType::Hex8), "8-node hexahedron");
+        assert_eq!(element_kind(ElementType::Pri6), "6-node prism");
+        assert_eq!(element_kind(ElementType::Pyr5), "5-node pyramid");
+        assert_eq!(
+            element_kind(ElementType::Tet10),
+            "10-node tetrahedron (higher order)"
+        );
+        assert_eq!(element_kind(ElementType::Qua4), "4-node quadrangle");
+    }
+
+    #[test]
+    fn empty_node_section_does_not_panic() {
+        let text = "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n0 0 0 0\n$EndNodes\n\
+                    $Elements\n0 0 0 0\n$EndElements\n";
+        let error = read_msh_bytes(Path::new("empty.msh"), text.as_bytes()).unwrap_err();
+        assert!(error.to_string().starts_with("empty.msh: "), "{error}");
     }
 }
