@@ -306,7 +306,8 @@ fn whole_family_matches_the_library_and_the_grading() {
     let mean = |set: &[ShapeMeasures], f: fn(&ShapeMeasures) -> f64| {
         set.iter().map(f).sum::<f64>() / set.len() as f64
     };
-    let measures: [(&str, fn(&ShapeMeasures) -> f64); 3] = [
+    type Measure = (&'static str, fn(&ShapeMeasures) -> f64);
+    let measures: [Measure; 3] = [
         ("I/L", |s| s.elongation()),
         ("S/I", |s| s.flatness()),
         ("sphericity", |s| s.sphericity),

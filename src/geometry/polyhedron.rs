@@ -61,11 +61,14 @@ pub fn mass_properties(vertices: &[Point3<f64>], triangles: &[[u32; 3]]) -> Mass
     }
 }
 
+/// A triangulated surface: vertices and 0-based, outward-oriented triangles.
+pub type TriangleSurface = (Vec<Point3<f64>>, Vec<[u32; 3]>);
+
 /// The convex hull of `points`: its vertices and outward-oriented triangles.
 ///
 /// Errors (instead of panicking) on degenerate input such as fewer than four points or
 /// coplanar points.
-pub fn convex_hull(points: &[Point3<f64>]) -> Result<(Vec<Point3<f64>>, Vec<[u32; 3]>)> {
+pub fn convex_hull(points: &[Point3<f64>]) -> Result<TriangleSurface> {
     if points.len() < 4 {
         return Err(Error::Message(format!(
             "convex hull of {} points: at least 4 are needed",

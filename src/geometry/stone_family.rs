@@ -138,7 +138,8 @@ pub fn percent_passing(shapes: &[ShapeMeasures], sieve_m: f64) -> f64 {
         .filter(|s| s.sieve_size() <= sieve_m)
         .map(|s| s.volume)
         .sum();
-    100.0 * passing / total
+    // `+ 0.0` turns the empty sum (-0.0) into 0.
+    100.0 * passing / total + 0.0
 }
 
 /// The family-vs-library table printed by `ballast-post stones DIR [--library FILE]`:
