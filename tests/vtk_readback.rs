@@ -243,6 +243,16 @@ fn every_kind_reads_back_in_vtk() {
             grid
         }),
     ];
+    // A blown-up run's last frame: NaN and infinities must survive too.
+    let mut blow_up = particles(3);
+    blow_up
+        .add_point_field(
+            "kinetic_energy_J",
+            1,
+            vec![f64::NAN, f64::INFINITY, f64::NEG_INFINITY],
+        )
+        .unwrap();
+    cases.push((dir.path().join("blow_up.vtu"), blow_up));
     // A grid of mixed cells (a tetra and its surface).
     let mut mixed = Grid::tetra(triangles().point_coordinates().to_vec(), &[[0, 1, 2, 3]]).unwrap();
     mixed

@@ -27,14 +27,18 @@ const VTKIO_BLOCK_BYTES: usize = 32768;
 /// Writes `grid` to `path` as a binary VTK XML unstructured grid, atomically.
 pub fn write_vtu(path: impl AsRef<Path>, grid: &Grid) -> Result<()> {
     let path = path.as_ref();
-    let bytes = vtu_bytes(grid).map_err(|what| Error::invalid(path, what))?;
+    let bytes = encode(grid, should_compress(grid)).map_err(|what| Error::invalid(path, what))?;
     write_atomic(path, &bytes)
 }
 
 /// The `.vtu` file content for `grid` (what [`write_vtu`] writes).
-pub fn vtu_bytes(grid: &Grid) -> std::result::Result<Vec<u8>, String> {
-    let compress = array_byte_sizes(grid).all(|size| size % VTKIO_BLOCK_BYTES != 0);
-    encode(grid, compress)
+pub fn vtu_bytes(grid: &Grid) -> Result<Vec<u8>> {
+    encode(grid, should_compress(grid)).map_err(Error::Message)
+}
+
+/// Whether every array avoids vtkio's compressed-block edge case.
+fn should_compress(grid: &Grid) -> bool {
+    array_byte_sizes(grid).all(|size| size % VTKIO_BLOCK_BYTES != 0)
 }
 
 fn encode(grid: &Grid, compress: bool) -> std::result::Result<Vec<u8>, String> {
