@@ -13,6 +13,7 @@ pub mod error;
 pub mod geometry;
 pub mod mesh;
 pub mod output;
+pub mod post;
 pub mod scene;
 
 pub use error::{Error, Result};

@@ -3,6 +3,15 @@
 
 use crate::Error;
 
+mod post;
+mod solvers;
+
+pub use post::{run_post, PostCli, PostCommand};
+pub use solvers::{
+    run_fem, run_nscd, run_pack, run_qdem, FemCli, FemCommand, NscdCli, NscdCommand, PackCli,
+    QdemCli,
+};
+
 /// Runs a binary's main function and turns an error into one line on stderr and a
 /// non-zero exit status (2 for "not implemented yet", 1 for any other failure).
 pub fn exit_with(program: &str, result: crate::Result<()>) -> ! {
@@ -19,4 +28,18 @@ pub fn exit_with(program: &str, result: crate::Result<()>) -> ! {
 /// Shorthand for the "not implemented yet" error of a planned solver.
 pub fn not_implemented(what: &str) -> Error {
     Error::NotImplemented(what.to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::CommandFactory;
+
+    #[test]
+    fn clap_definitions_are_consistent() {
+        super::PostCli::command().debug_assert();
+        super::PackCli::command().debug_assert();
+        super::NscdCli::command().debug_assert();
+        super::QdemCli::command().debug_assert();
+        super::FemCli::command().debug_assert();
+    }
 }

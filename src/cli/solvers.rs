@@ -1,0 +1,133 @@
+//! Front ends of the solver binaries whose numerics are still being built: they accept
+//! the run contract, check that the scene file exists, and exit with status 2 saying
+//! "not implemented yet" rather than write anything that could pass for a result.
+
+use crate::scene::RunArgs;
+use clap::{Parser, Subcommand};
+use std::path::PathBuf;
+
+/// Stops with a clear error if the scene file cannot be read, then reports `what` as not
+/// implemented. Reading first means a typo in the path is reported as such.
+fn planned(args: &RunArgs, what: &str) -> crate::Result<()> {
+    std::fs::metadata(&args.scene).map_err(|e| crate::Error::io(&args.scene, e))?;
+    Err(super::not_implemented(what))
+}
+
+/// `ballast-pack`: ballast beds by gravity deposition.
+#[derive(Debug, Parser)]
+#[command(
+    name = "ballast-pack",
+    version,
+    about = "Build a ballast bed by gravity deposition of polyhedral stones (NSCD engine): \
+             a packing file, VTK and a compactness report"
+)]
+pub struct PackCli {
+    #[command(flatten)]
+    run: RunArgs,
+}
+
+/// Runs `ballast-pack`.
+pub fn run_pack(cli: PackCli) -> crate::Result<()> {
+    planned(&cli.run, "ballast-pack (gravity deposition)")
+}
+
+/// `ballast-nscd`: non-smooth contact dynamics of rigid polyhedra.
+#[derive(Debug, Parser)]
+#[command(
+    name = "ballast-nscd",
+    version,
+    about = "Non-smooth contact dynamics of rigid polyhedral grains (Moreau-Jean, NLGS, \
+             domain decomposition): tamping and other NSCD scenes",
+    args_conflicts_with_subcommands = true,
+    subcommand_negates_reqs = true
+)]
+pub struct NscdCli {
+    #[command(subcommand)]
+    command: Option<NscdCommand>,
+    #[command(flatten)]
+    run: Option<RunArgs>,
+}
+
+/// Sub-commands of `ballast-nscd` besides running a scene.
+#[derive(Debug, Subcommand)]
+pub enum NscdCommand {
+    /// Solve a frictional-contact problem written by Siconos (FCLIB .dat or .hdf5).
+    Fc3d {
+        /// The problem file.
+        file: PathBuf,
+        /// Stop when the Siconos error measure falls below this.
+        #[arg(long, default_value_t = 1e-8)]
+        tol: f64,
+        /// Cap on NSGS sweeps.
+        #[arg(long, default_value_t = 10_000)]
+        max_iter: usize,
+        /// Print one JSON object instead of a table.
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+/// Runs `ballast-nscd`.
+pub fn run_nscd(cli: NscdCli) -> crate::Result<()> {
+    match (cli.command, cli.run) {
+        (Some(NscdCommand::Fc3d { file, .. }), _) => {
+            std::fs::metadata(&file).map_err(|e| crate::Error::io(&file, e))?;
+            Err(super::not_implemented("ballast-nscd fc3d (NSGS solver)"))
+        }
+        (None, Some(run)) => planned(&run, "ballast-nscd (NSCD solver)"),
+        (None, None) => Err(crate::Error::Message(
+            "ballast-nscd: give a SCENE.toml or a sub-command (see --help)".into(),
+        )),
+    }
+}
+
+/// `ballast-qdem`: explicit viscoelastic tetra bodies with DEM vertex contact.
+#[derive(Debug, Parser)]
+#[command(
+    name = "ballast-qdem",
+    version,
+    about = "QDEM: tetrahedral Kelvin-Voigt viscoelastic bodies integrated explicitly, DEM \
+             spheres at the vertices for contact (cantilever, creep, track impact scenes)"
+)]
+pub struct QdemCli {
+    #[command(flatten)]
+    run: RunArgs,
+    /// Run with a time step above the stable one (the run may blow up).
+    #[arg(long)]
+    force: bool,
+}
+
+/// Runs `ballast-qdem`.
+pub fn run_qdem(cli: QdemCli) -> crate::Result<()> {
+    planned(&cli.run, "ballast-qdem (QDEM solver)")
+}
+
+/// `ballast-fem`: the linear-tetra reference solver.
+#[derive(Debug, Parser)]
+#[command(
+    name = "ballast-fem",
+    version,
+    about = "Reference linear-elastic FEM on the same tetra meshes: static solve and lowest \
+             vibration modes (sparse Cholesky, shift-invert)"
+)]
+pub struct FemCli {
+    #[command(subcommand)]
+    command: FemCommand,
+}
+
+/// What `ballast-fem` computes.
+#[derive(Debug, Subcommand)]
+pub enum FemCommand {
+    /// Static displacement under the scene's loads.
+    Static(RunArgs),
+    /// Lowest vibration modes and frequencies.
+    Modes(RunArgs),
+}
+
+/// Runs `ballast-fem`.
+pub fn run_fem(cli: FemCli) -> crate::Result<()> {
+    match cli.command {
+        FemCommand::Static(run) => planned(&run, "ballast-fem static (FEM solver)"),
+        FemCommand::Modes(run) => planned(&run, "ballast-fem modes (FEM solver)"),
+    }
+}
