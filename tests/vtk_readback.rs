@@ -2,43 +2,13 @@
 //! readers (the `vtk` Python wheel in the project's venv, the library ParaView uses),
 //! comparing names, sizes and values bit for bit.
 
+mod common;
+
+use common::read_with_vtk;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use ballast::output::{write_vtu, CellKind, Field, FieldValues, Grid, PvdWriter};
 use serde_json::Value;
-
-/// The venv's Python: `BALLAST_PYTHON`, else `.venv/bin/python` in the crate root.
-fn python() -> PathBuf {
-    let python = match std::env::var_os("BALLAST_PYTHON") {
-        Some(path) => PathBuf::from(path),
-        None => Path::new(env!("CARGO_MANIFEST_DIR")).join(".venv/bin/python"),
-    };
-    assert!(
-        python.exists(),
-        "{} not found: run `make setup` to create the project's venv (with the vtk wheel), \
-         or set BALLAST_PYTHON to a Python that can `import vtk`",
-        python.display()
-    );
-    python
-}
-
-/// Runs tests/vtk_read.py on `files` and returns its JSON, keyed by path.
-fn read_with_vtk(files: &[PathBuf]) -> Value {
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/vtk_read.py");
-    let output = Command::new(python())
-        .arg(&script)
-        .args(files)
-        .output()
-        .expect("cannot run the venv's python");
-    assert!(
-        output.status.success(),
-        "vtk_read.py failed ({}):\n{}",
-        output.status,
-        String::from_utf8_lossy(&output.stderr)
-    );
-    serde_json::from_slice(&output.stdout).expect("vtk_read.py printed invalid JSON")
-}
 
 fn key(path: &Path) -> String {
     path.to_str().unwrap().to_string()

@@ -1,0 +1,39 @@
+//! Helpers shared by the integration tests: the project's venv Python and VTK read-back.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use serde_json::Value;
+
+/// The venv's Python: `BALLAST_PYTHON`, else `.venv/bin/python` in the crate root.
+pub fn python() -> PathBuf {
+    let python = match std::env::var_os("BALLAST_PYTHON") {
+        Some(path) => PathBuf::from(path),
+        None => Path::new(env!("CARGO_MANIFEST_DIR")).join(".venv/bin/python"),
+    };
+    assert!(
+        python.exists(),
+        "{} not found: run `make setup` to create the project's venv (with the vtk wheel), \
+         or set BALLAST_PYTHON to a Python that can `import vtk`",
+        python.display()
+    );
+    python
+}
+
+/// Runs tests/vtk_read.py on `files` and returns its JSON, keyed by path.
+pub fn read_with_vtk(files: &[PathBuf]) -> Value {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/vtk_read.py");
+    let output = Command::new(python())
+        .arg(&script)
+        .args(files)
+        .output()
+        .expect("cannot run the venv's python");
+    assert!(
+        output.status.success(),
+        "vtk_read.py failed ({}):\n{}",
+        output.status,
+        String::from_utf8_lossy(&output.stderr)
+    );
+    serde_json::from_slice(&output.stdout).expect("vtk_read.py printed invalid JSON")
+}
