@@ -14,6 +14,7 @@ pub mod geometry;
 pub mod mesh;
 pub mod output;
 pub mod post;
+pub mod qdem;
 pub mod scene;
 
 pub use error::{Error, Result};
