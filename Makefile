@@ -53,7 +53,8 @@ meshes/%.msh: geo/%.geo | $(VENV_STAMP)
 	@mkdir -p $(@D)
 	$(GMSH) $< $(GMSH_FLAGS) -o $@
 
--include mk/stones.mk
+# Fragments: the stone family, peer comparisons, benchmarks (one file each).
+include $(sort $(wildcard mk/*.mk))
 
 ## The default scene: every mesh checked, exported to VTK and tabulated.
 gallery: results/mesh_gallery/summary.json
