@@ -1,0 +1,34 @@
+//! Non-smooth contact dynamics numerics (seed 000 §2.1): the frictional-contact problem,
+//! the exact local 3-D Coulomb solver and the non-linear Gauss–Seidel (NSGS) sweep.
+//!
+//! Like Siconos's *numerics*, this module knows nothing of files, scenes or meshes:
+//! [`problem::FrictionProblem`] is filled by the NSCD step (later) or by the FC3D readers
+//! ([`crate::fc3d`]); [`nlgs::solve`] takes it with [`nlgs::NlgsOptions`] and returns an
+//! [`nlgs::NlgsReport`].
+//!
+//! # Two forms, one local solver
+//! - **W form** (built): `u = W r + q`, W as block-sparse rows of 3 × 3 blocks. A sweep
+//!   forms `q_a + Σ_b W_ab r_b` per contact. This is what the FC3D files give.
+//! - **Body-velocity form** (planned for the NSCD engine): `u_a = H_aᵀ v + w_a`, with
+//!   `M v = H r + f` kept up to date: after contact a's local solve, the two bodies'
+//!   velocities get `M⁻¹ H_a Δr_a` in place, so a sweep costs O(contacts) without ever
+//!   assembling W. It needs only the diagonal blocks `W_aa = H_aᵀ M⁻¹ H_a` for the local
+//!   solver. It will be a second sweep beside [`nlgs::solve`] that calls the same
+//!   [`coulomb::LocalCoulomb::solve`] with the local free velocity
+//!   `H_aᵀ v + w_a − W_aa r_a`, and takes and returns the same options and report
+//!   structs; the error measure is the same one on `u = Hᵀ v + w`.
+//!
+//! # Stopping
+//! [`nlgs::Stopping::Tolerance`] stops when the Siconos error measure
+//! ([`residual::siconos_error`]: `√(Σ_a ‖r_a − Π_K(r_a − ũ_a)‖²) / max(‖q‖, ‖r‖, ‖u‖)`)
+//! is at most the tolerance, or at the sweep cap; [`nlgs::Stopping::Sweeps`] makes a
+//! fixed number of sweeps (the seed's n_DDM).
+
+pub mod coulomb;
+pub mod nlgs;
+pub mod problem;
+pub mod residual;
+
+pub use coulomb::{ContactStatus, LocalCoulomb};
+pub use nlgs::{ErrorCheck, NlgsOptions, NlgsReport, Stopping};
+pub use problem::{Block3, DelassusBlocks, FrictionProblem};
