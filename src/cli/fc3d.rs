@@ -47,6 +47,7 @@ pub(super) fn run(file: &Path, tolerance: f64, max_sweeps: usize, json: bool) ->
             "solver_time_s": report.solve_time.as_secs_f64(),
             "error_evaluations": report.error_evaluations,
             "local_fallbacks": report.local_fallbacks,
+            "returned_sweep": report.returned_sweep,
         });
         println!("{object}");
     } else {

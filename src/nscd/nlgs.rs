@@ -76,11 +76,19 @@ pub struct NlgsReport {
     pub error_evaluations: usize,
     /// Local solves that fell back to the projected fixed point (singular W_aa).
     pub local_fallbacks: usize,
+    /// The sweep whose impulse is returned: `iterations`, except when the cap was hit
+    /// and an earlier measured iterate had a lower error (see [`solve`]).
+    pub returned_sweep: usize,
 }
 
 /// Solves `problem` by NLGS from the impulse in `impulse` (zero for a cold start, the
 /// previous step's for a warm one). On return `impulse` holds r and `velocity` holds
 /// `u = W r + q`.
+///
+/// Under [`Stopping::Tolerance`], when the cap is reached without convergence, the
+/// measured iterate with the lowest error is returned (NSGS on a hard problem often
+/// settles in a cycle whose error varies several-fold from sweep to sweep); under
+/// [`Stopping::Sweeps`] the last iterate is.
 pub fn solve(
     problem: &FrictionProblem,
     impulse: &mut [f64],
@@ -112,7 +120,11 @@ pub fn solve(
         solve_time: Duration::ZERO,
         error_evaluations: 0,
         local_fallbacks: 0,
+        returned_sweep: 0,
     };
+    let mut best_error = f64::INFINITY;
+    let mut best_sweep = 0;
+    let mut best_impulse = Vec::new();
     let (tolerance, max_sweeps) = match options.stopping {
         Stopping::Tolerance {
             tolerance,
@@ -159,14 +171,25 @@ pub fn solve(
                 report.converged = true;
                 break;
             }
+            if report.error < best_error {
+                best_error = report.error;
+                best_sweep = report.iterations;
+                best_impulse.clear();
+                best_impulse.extend_from_slice(impulse);
+            }
         }
     }
+    report.returned_sweep = report.iterations;
     if !report.converged {
         report.error = siconos_error(problem, impulse, velocity);
         report.error_evaluations += 1;
         report.converged = report.error <= tolerance;
-    } else {
-        // The velocity from the last evaluation is the final one already.
+        if best_error < report.error {
+            impulse.copy_from_slice(&best_impulse);
+            report.error = siconos_error(problem, impulse, velocity);
+            report.error_evaluations += 1;
+            report.returned_sweep = best_sweep;
+        }
     }
     report.solve_time = start.elapsed();
     report
