@@ -10,6 +10,7 @@
 
 pub mod cli;
 pub mod error;
+pub mod fem;
 pub mod geometry;
 pub mod mesh;
 pub mod output;
