@@ -10,9 +10,11 @@
 
 pub mod cli;
 pub mod error;
+pub mod fc3d;
 pub mod fem;
 pub mod geometry;
 pub mod mesh;
+pub mod nscd;
 pub mod output;
 pub mod post;
 pub mod qdem;

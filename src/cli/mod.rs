@@ -3,6 +3,7 @@
 
 use crate::Error;
 
+mod fc3d;
 mod post;
 mod solvers;
 

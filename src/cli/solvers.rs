@@ -70,10 +70,15 @@ pub enum NscdCommand {
 /// Runs `ballast-nscd`.
 pub fn run_nscd(cli: NscdCli) -> crate::Result<()> {
     match (cli.command, cli.run) {
-        (Some(NscdCommand::Fc3d { file, .. }), _) => {
-            std::fs::metadata(&file).map_err(|e| crate::Error::io(&file, e))?;
-            Err(super::not_implemented("ballast-nscd fc3d (NSGS solver)"))
-        }
+        (
+            Some(NscdCommand::Fc3d {
+                file,
+                tol,
+                max_iter,
+                json,
+            }),
+            _,
+        ) => super::fc3d::run(&file, tol, max_iter, json),
         (None, Some(run)) => planned(&run, "ballast-nscd (NSCD solver)"),
         (None, None) => Err(crate::Error::Message(
             "ballast-nscd: give a SCENE.toml or a sub-command (see --help)".into(),

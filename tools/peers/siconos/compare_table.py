@@ -34,7 +34,7 @@ def load(path):
 def cell(record):
     if record is None:
         return "missing"
-    capped = "" if record["converged"] else "*"
+    capped = "*" if record["iterations"] >= record["max_iter"] else ""
     error = record["error"]
     error = "nan" if error is None else f"{error:.1e}"
     return f"{record['iterations']}{capped} / {error} / {record['solver_time_s']:.1e}"
@@ -56,11 +56,12 @@ def main():
         for tol in tolerances:
             a, b = ours.get((name, tol)), siconos.get((name, tol))
             line += [cell(a), cell(b)]
+            rows += 1
             if a is None or b is None:
                 continue
-            rows += 1
-            # No worse: ours meets the tolerance, or beats Siconos's own final error.
-            if a["error"] is not None and a["error"] <= max(tol, b["error"] or 0.0):
+            # No worse: ours meets the tolerance, or reaches Siconos's own final error (to
+            # 1e-6 relative: two NSGS runs that differ only in rounding tie).
+            if a["error"] is not None and a["error"] <= max(tol, (b["error"] or 0.0) * (1 + 1e-6)):
                 error_ok += 1
             quicker = a["solver_time_s"] < b["solver_time_s"]
             faster += quicker
@@ -71,7 +72,7 @@ def main():
     print()
     print("Cells: sweeps / Siconos error measure / solver seconds (fastest of the runs); "
           "* = the 10 000-sweep cap was hit.")
-    print(f"Error no worse (ours <= max(tol, Siconos's)): {error_ok} of {rows} runs.")
+    print(f"Error no worse (ours <= max(tol, Siconos's x (1 + 1e-6))): {error_ok} of {rows} runs.")
     print(f"Ours faster: {faster} of {rows} runs; on problems with >= 50 contacts: "
           f"{big_faster} of {big_rows}.")
     return 0 if error_ok == rows else 1
