@@ -22,6 +22,7 @@ stones: $(STONE_MESHES)
 
 $(STONE_DIR)/stone_%.msh: $(STONE_GEO) $(STONE_TABLE) | $(VENV_STAMP)
 	@mkdir -p $(@D)
-	options="$$($(call stone_options,$*))" && \
+	@echo "gmsh stone_$*"
+	@options="$$($(call stone_options,$*))" && \
 	$(GMSH) $(STONE_GEO) -3 -format msh41 -v 2 -setnumber General.AbortOnError 2 \
 	  $$options -o $@.tmp.msh && mv $@.tmp.msh $@

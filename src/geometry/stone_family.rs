@@ -64,6 +64,13 @@ pub struct StoneMeasures {
     pub mesh_volume: f64,
     /// Convex hull volume of the nodes / mesh volume: 1 for a convex stone.
     pub hull_ratio: f64,
+    /// Worst tetra quality, normalised radius ratio `3 r_in / r_circ` (1 = regular).
+    pub min_quality: f64,
+    /// Mean tetra quality (same measure).
+    pub mean_quality: f64,
+    /// Smallest tetra altitude / the stone's equivalent diameter d_eq: the explicit
+    /// stable time step of a deformable stone scales with it.
+    pub min_altitude_ratio: f64,
 }
 
 /// Measures a stone mesh: shape from its boundary triangles, convexity from the hull of
@@ -90,12 +97,16 @@ pub fn measure_stone_mesh(mesh: &TetMesh) -> Result<StoneMeasures> {
     let shape = ShapeMeasures::of_polyhedron(&mesh.nodes, &mesh.boundary, &corners);
     let hull_volume =
         convex_hull_volume(&mesh.nodes).map_err(|e| Error::invalid(&mesh.source, e.to_string()))?;
+    let quality = mesh.quality();
     Ok(StoneMeasures {
         source: mesh.source.clone(),
         shape,
         tets: mesh.tets.len(),
         mesh_volume,
         hull_ratio: hull_volume / mesh_volume,
+        min_quality: quality.min_quality,
+        mean_quality: quality.mean_quality,
+        min_altitude_ratio: quality.min_altitude_m / shape.d_eq,
     })
 }
 
@@ -208,6 +219,21 @@ pub fn stone_family_report(stone_dir: &Path, library: Option<&Path>) -> Result<S
     let _ = writeln!(
         out,
         "tetra per stone min..max: {tets_min}..{tets_max}; hull/mesh volume min: {hull_min:.5}"
+    );
+    let fold_min =
+        |f: fn(&StoneMeasures) -> f64| stones.iter().map(f).fold(f64::INFINITY, f64::min);
+    let quality_min = fold_min(|s| s.min_quality);
+    let altitude_min = fold_min(|s| s.min_altitude_ratio);
+    let quality_mean = stones
+        .iter()
+        .map(|s| s.mean_quality * s.tets as f64)
+        .sum::<f64>()
+        / stones.iter().map(|s| s.tets as f64).sum::<f64>();
+    let _ = writeln!(
+        out,
+        "tetra quality (3 r_in / r_circ) min: {quality_min:.3}, mean: {quality_mean:.3}; \
+         min altitude / d_eq: {:.2} %",
+        100.0 * altitude_min
     );
     if let Some(shapes) = &library_shapes {
         let fraction = |set: &[ShapeMeasures]| {
