@@ -16,6 +16,11 @@ use std::ops::Range;
 /// a colour has few, long tasks.
 pub(crate) const BLOCK_SIZE: usize = 256;
 
+/// Below this many tetra the phases run on the calling thread: handing a few hundred
+/// tetra to a thread pool costs more than computing them. The summation order is the
+/// same either way, so the results are too.
+pub(crate) const PARALLEL_MIN_TETS: usize = 8192;
+
 /// Blocks of consecutive tetra grouped by colour.
 #[derive(Debug, Clone)]
 pub(crate) struct BlockColouring {
@@ -149,24 +154,33 @@ impl BlockColouring {
             ptr: forces.as_mut_ptr(),
             _lifetime: PhantomData,
         };
+        let run_block = |block: &Range<usize>, partial: &mut P| {
+            *partial = P::default();
+            for e in block.clone() {
+                let f = kernel(e, partial);
+                for (k, &n) in nodes[e].iter().enumerate() {
+                    // SAFETY: `n < forces.len()` (checked above) and, within one colour,
+                    // no other block touches node n (`verify`), so this is the only
+                    // access to `forces[n]` while the colour runs; a colour's blocks all
+                    // finish before the next colour starts.
+                    unsafe { target.add(n as usize, f[k]) };
+                }
+            }
+        };
+        let parallel = nodes.len() >= PARALLEL_MIN_TETS;
         for c in 0..self.colours() {
             let range = self.colour_offsets[c]..self.colour_offsets[c + 1];
-            self.blocks[range.clone()]
-                .par_iter()
-                .zip(partials[range].par_iter_mut())
-                .for_each(|(block, partial)| {
-                    *partial = P::default();
-                    for e in block.clone() {
-                        let f = kernel(e, partial);
-                        for (k, &n) in nodes[e].iter().enumerate() {
-                            // SAFETY: `n < forces.len()` (checked above) and, within one
-                            // colour, no other block touches node n (`verify`), so this
-                            // is the only access to `forces[n]` while the colour runs;
-                            // `for_each` returns before the next colour starts.
-                            unsafe { target.add(n as usize, f[k]) };
-                        }
-                    }
-                });
+            if parallel {
+                self.blocks[range.clone()]
+                    .par_iter()
+                    .zip(partials[range].par_iter_mut())
+                    .for_each(|(block, partial)| run_block(block, partial));
+            } else {
+                for (block, partial) in self.blocks[range.clone()].iter().zip(&mut partials[range])
+                {
+                    run_block(block, partial);
+                }
+            }
         }
     }
 }

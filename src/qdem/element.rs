@@ -197,7 +197,7 @@ pub(crate) fn element_forces(
     let st = element_stress(x, v, dm_inv, m);
     let (t_e, t_d, g, det) = (st.elastic, st.viscous, st.adjugate, st.det);
     sums.strain_energy += st.energy_density * ref_volume;
-    if !(det > 0.0) {
+    if det.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
         sums.inverted += 1;
     }
     let t = if m.viscous {

@@ -13,6 +13,7 @@
 //! in) stops the run with an error naming the stable time step.
 
 use super::boundary::{Boundary, NodalLoad};
+use super::colouring::PARALLEL_MIN_TETS;
 use super::element::{ElementSums, Vec3};
 use super::energy::Energies;
 use super::model::{ElementTotals, QdemModel};
@@ -82,6 +83,9 @@ pub struct State {
     /// Energy terms.
     pub energies: Energies,
     primed: bool,
+    /// kinetic + strain at the start, and the most external work done so far: the
+    /// bound of the blow-up check.
+    initial_mechanical: f64,
     most_work: f64,
 }
 
@@ -97,6 +101,7 @@ impl State {
             accelerations: vec![[0.0; 3]; n],
             energies: Energies::default(),
             primed: false,
+            initial_mechanical: 0.0,
             most_work: 0.0,
         }
     }
@@ -114,11 +119,22 @@ impl State {
 /// Nodes per task of the node phases.
 const NODE_CHUNK: usize = 4096;
 
+/// One chunk of a node phase: (index, (((x, v), a), sums)) for the drift,
+/// (index, (((v, a), f), sums)) for the kick.
+type ChunkItem<'a, 'b> = (
+    usize,
+    (
+        ((&'a mut [Vec3], &'a mut [Vec3]), &'a [Vec3]),
+        &'b mut NodeSums,
+    ),
+);
+
 #[derive(Debug, Clone, Copy, Default)]
 struct NodeSums {
     gravity_work: f64,
     damping_work: f64,
     kinetic: f64,
+    acceleration_squared: f64,
     non_finite: bool,
 }
 
@@ -133,6 +149,13 @@ pub struct QdemSolver<'m> {
     loads: Vec<NodalLoad>,
     gravity: Vec3,
     forces: Vec<Vec3>,
+    /// Kinetic energy the current external forces alone would give in one step,
+    /// Σ dt² |f_ext|² / (2m): the blow-up bound's allowance for a load that has only
+    /// just started (its work lags the energy by half a step in Verlet).
+    pending_energy: f64,
+    /// Strain energy of a strain of 1e-12 everywhere: below it energies are round-off
+    /// (a body at rest has F = I only to round-off) and the blow-up check ignores them.
+    energy_floor: f64,
     element_partials: Vec<ElementSums>,
     node_partials: Vec<NodeSums>,
 }
@@ -185,6 +208,8 @@ impl<'m> QdemSolver<'m> {
             loads: boundary.loads.clone(),
             gravity: [boundary.gravity.x, boundary.gravity.y, boundary.gravity.z],
             forces: vec![[0.0; 3]; n],
+            pending_energy: 0.0,
+            energy_floor: 0.5e-24 * model.modulus_volume(),
             element_partials: vec![ElementSums::default(); model.colouring.blocks.len()],
             node_partials: vec![NodeSums::default(); n.div_ceil(NODE_CHUNK)],
         })
@@ -220,13 +245,16 @@ impl<'m> QdemSolver<'m> {
         }
         let totals = self.forces_and_accelerations(state, 0.0);
         let sums = self.node_partials.iter().fold(NodeSums::default(), merge);
+        let verlet_correction = self.dt * self.dt / 8.0 * sums.acceleration_squared;
         state.energies = Energies {
             kinetic: sums.kinetic,
+            verlet_correction,
             strain: totals.strain_energy,
-            initial: sums.kinetic + totals.strain_energy,
+            initial: sums.kinetic - verlet_correction + totals.strain_energy,
             ..Energies::default()
         };
         state.primed = true;
+        state.initial_mechanical = state.energies.mechanical();
         state.most_work = 0.0;
         self.check(state, &totals, sums.non_finite)
     }
@@ -238,38 +266,51 @@ impl<'m> QdemSolver<'m> {
         }
         let dt = self.dt;
         let half = 0.5 * dt;
-        let masses = &self.model.node_masses()[..];
+        let masses = self.model.node_masses();
         let (g, rate) = (self.gravity, self.damping_rate());
         // Phase 1: half kick and drift.
-        state
-            .positions
-            .par_chunks_mut(NODE_CHUNK)
-            .zip(state.velocities.par_chunks_mut(NODE_CHUNK))
-            .zip(state.accelerations.par_chunks(NODE_CHUNK))
-            .zip(self.node_partials.par_iter_mut())
-            .enumerate()
-            .for_each(|(chunk, (((x, v), a), sums))| {
-                let start = chunk * NODE_CHUNK;
-                let mut s = NodeSums::default();
-                for i in 0..x.len() {
-                    let mask = self.masks[start + i];
-                    let m = masses[start + i];
-                    let mut v2 = 0.0;
-                    for d in 0..3 {
-                        let vd = if mask & (1 << d) != 0 {
-                            0.0
-                        } else {
-                            v[i][d] + half * a[i][d]
-                        };
-                        v[i][d] = vd;
-                        x[i][d] += dt * vd;
-                        s.gravity_work += m * g[d] * dt * vd;
-                        v2 += vd * vd;
-                    }
-                    s.damping_work += rate * m * v2 * dt;
+        let masks = &self.masks;
+        let drift = |(chunk, (((x, v), a), sums)): ChunkItem<'_, '_>| {
+            let start = chunk * NODE_CHUNK;
+            let mut s = NodeSums::default();
+            for i in 0..x.len() {
+                let mask = masks[start + i];
+                let m = masses[start + i];
+                let mut v2 = 0.0;
+                for d in 0..3 {
+                    let vd = if mask & (1 << d) != 0 {
+                        0.0
+                    } else {
+                        v[i][d] + half * a[i][d]
+                    };
+                    v[i][d] = vd;
+                    x[i][d] += dt * vd;
+                    s.gravity_work += m * g[d] * dt * vd;
+                    v2 += vd * vd;
                 }
-                *sums = s;
-            });
+                s.damping_work += rate * m * v2 * dt;
+            }
+            *sums = s;
+        };
+        if self.parallel() {
+            state
+                .positions
+                .par_chunks_mut(NODE_CHUNK)
+                .zip(state.velocities.par_chunks_mut(NODE_CHUNK))
+                .zip(state.accelerations.par_chunks(NODE_CHUNK))
+                .zip(self.node_partials.par_iter_mut())
+                .enumerate()
+                .for_each(drift);
+        } else {
+            state
+                .positions
+                .chunks_mut(NODE_CHUNK)
+                .zip(state.velocities.chunks_mut(NODE_CHUNK))
+                .zip(state.accelerations.chunks(NODE_CHUNK))
+                .zip(self.node_partials.iter_mut())
+                .enumerate()
+                .for_each(drift);
+        }
         let phase1 = self.node_partials.iter().fold(NodeSums::default(), merge);
         let t_new = state.time + dt;
         let load_work = self.load_work(state, t_new);
@@ -281,6 +322,7 @@ impl<'m> QdemSolver<'m> {
         let e = &mut state.energies;
         let previous_kinetic = e.kinetic;
         e.kinetic = phase3.kinetic;
+        e.verlet_correction = dt * dt / 8.0 * phase3.acceleration_squared;
         e.strain = totals.strain_energy;
         e.viscous_dissipated += dt * totals.dissipation_rate;
         e.damping_dissipated += phase1.damping_work;
@@ -305,6 +347,11 @@ impl<'m> QdemSolver<'m> {
     /// Cauchy stress T = T_E + T_D of every tetra (original order) in `state`.
     pub fn stresses(&self, state: &State) -> Vec<Matrix3<f64>> {
         self.model.stresses(&state.positions, &state.velocities)
+    }
+
+    /// Whether the node phases go to the thread pool (same results either way).
+    fn parallel(&self) -> bool {
+        self.model.tet_count() >= PARALLEL_MIN_TETS
     }
 
     fn damping_rate(&self) -> f64 {
@@ -342,9 +389,14 @@ impl<'m> QdemSolver<'m> {
             &mut self.forces,
             &mut self.element_partials,
         );
+        let gravity_squared = self.gravity.iter().map(|g| g * g).sum::<f64>();
+        let dt2 = self.dt * self.dt;
+        self.pending_energy = 0.5 * dt2 * gravity_squared * self.model.total_mass();
         for load in &self.loads {
             let per_node = load.total_force / load.nodes.len() as f64 * load.time_fn.value(time);
             for &n in &load.nodes {
+                self.pending_energy +=
+                    0.5 * dt2 * per_node.norm_squared() / self.model.node_masses()[n as usize];
                 let f = &mut self.forces[n as usize];
                 f[0] += per_node.x;
                 f[1] += per_node.y;
@@ -352,39 +404,53 @@ impl<'m> QdemSolver<'m> {
             }
         }
         let half = if state.primed { 0.5 * self.dt } else { 0.0 };
-        let masses = &self.model.node_masses()[..];
+        let masses = self.model.node_masses();
         let (g, rate) = (self.gravity, self.damping_rate());
         let masks = &self.masks;
-        state
-            .velocities
-            .par_chunks_mut(NODE_CHUNK)
-            .zip(state.accelerations.par_chunks_mut(NODE_CHUNK))
-            .zip(self.forces.par_chunks(NODE_CHUNK))
-            .zip(self.node_partials.par_iter_mut())
-            .enumerate()
-            .for_each(|(chunk, (((v, a), f), sums))| {
-                let start = chunk * NODE_CHUNK;
-                let mut s = NodeSums::default();
-                for i in 0..v.len() {
-                    let mask = masks[start + i];
-                    let m = masses[start + i];
-                    let mut v2 = 0.0;
-                    for d in 0..3 {
-                        let (ad, vd) = if mask & (1 << d) != 0 {
-                            (0.0, 0.0)
-                        } else {
-                            let ad = (f[i][d] - rate * m * v[i][d]) / m + g[d];
-                            (ad, v[i][d] + half * ad)
-                        };
-                        a[i][d] = ad;
-                        v[i][d] = vd;
-                        v2 += vd * vd;
-                        s.non_finite |= !(ad.is_finite() && vd.is_finite());
-                    }
-                    s.kinetic += 0.5 * m * v2;
+        let kick = |(chunk, (((v, a), f), sums)): ChunkItem<'_, '_>| {
+            let start = chunk * NODE_CHUNK;
+            let mut s = NodeSums::default();
+            for i in 0..v.len() {
+                let mask = masks[start + i];
+                let m = masses[start + i];
+                let (mut v2, mut a2) = (0.0, 0.0);
+                for d in 0..3 {
+                    let (ad, vd) = if mask & (1 << d) != 0 {
+                        (0.0, 0.0)
+                    } else {
+                        let ad = (f[i][d] - rate * m * v[i][d]) / m + g[d];
+                        (ad, v[i][d] + half * ad)
+                    };
+                    a[i][d] = ad;
+                    v[i][d] = vd;
+                    v2 += vd * vd;
+                    a2 += ad * ad;
+                    s.non_finite |= !(ad.is_finite() && vd.is_finite());
                 }
-                *sums = s;
-            });
+                s.kinetic += 0.5 * m * v2;
+                s.acceleration_squared += m * a2;
+            }
+            *sums = s;
+        };
+        if self.parallel() {
+            state
+                .velocities
+                .par_chunks_mut(NODE_CHUNK)
+                .zip(state.accelerations.par_chunks_mut(NODE_CHUNK))
+                .zip(self.forces.par_chunks(NODE_CHUNK))
+                .zip(self.node_partials.par_iter_mut())
+                .enumerate()
+                .for_each(kick);
+        } else {
+            state
+                .velocities
+                .chunks_mut(NODE_CHUNK)
+                .zip(state.accelerations.chunks_mut(NODE_CHUNK))
+                .zip(self.forces.chunks(NODE_CHUNK))
+                .zip(self.node_partials.iter_mut())
+                .enumerate()
+                .for_each(kick);
+        }
         totals
     }
 
@@ -400,12 +466,15 @@ impl<'m> QdemSolver<'m> {
                 totals.first_inverted.unwrap_or(0)
             ))
         } else {
-            let bound = e.initial + state.most_work.max(0.0);
+            let bound = state.initial_mechanical
+                + state.most_work.max(0.0)
+                + self.pending_energy
+                + self.energy_floor;
             let factor = self.options.blowup_energy_factor;
             (e.mechanical() > factor * bound).then(|| {
                 format!(
                     "kinetic + strain energy {:.4e} J exceeds {factor} × (initial energy + work \
-                     done on the body) = {:.4e} J",
+                     done on the body + one step of load + round-off) = {:.4e} J",
                     e.mechanical(),
                     factor * bound
                 )
@@ -433,6 +502,7 @@ fn merge(a: NodeSums, b: &NodeSums) -> NodeSums {
         gravity_work: a.gravity_work + b.gravity_work,
         damping_work: a.damping_work + b.damping_work,
         kinetic: a.kinetic + b.kinetic,
+        acceleration_squared: a.acceleration_squared + b.acceleration_squared,
         non_finite: a.non_finite || b.non_finite,
     }
 }

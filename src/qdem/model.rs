@@ -275,6 +275,17 @@ impl QdemModel {
         out
     }
 
+    /// Σ V_0 (λ + 2µ) over the tetra (J): the energy scale of a unit strain.
+    pub(crate) fn modulus_volume(&self) -> f64 {
+        self.elements
+            .iter()
+            .map(|e| {
+                let m = &self.materials[e.material as usize];
+                e.ref_volume * (m.lambda + 2.0 * m.mu)
+            })
+            .sum()
+    }
+
     /// The material of each internal element (for the stability estimate).
     pub(crate) fn element_material(&self, e: usize) -> &ElementMaterial {
         &self.materials[self.elements[e].material as usize]
