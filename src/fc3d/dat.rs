@@ -131,7 +131,8 @@ fn block_sparse(t: &mut Tokens, nc: usize) -> Result<DelassusBlocks, String> {
     }
     let mut triplets = Vec::with_capacity(blocks);
     for row in 0..nc {
-        for k in row_pointer[row]..row_pointer[row + 1] {
+        let range = row_pointer[row]..row_pointer[row + 1];
+        for (k, &column) in range.clone().zip(&columns[range]) {
             t.expect("block number", k)?;
             let mut block: Block3 = [0.0; 9];
             for j in 0..3 {
@@ -139,7 +140,7 @@ fn block_sparse(t: &mut Tokens, nc: usize) -> Result<DelassusBlocks, String> {
                     block[3 * i + j] = t.real("block value")?;
                 }
             }
-            triplets.push((row, columns[k], block));
+            triplets.push((row, column, block));
         }
     }
     Ok(DelassusBlocks::from_blocks(nc, triplets))

@@ -216,7 +216,11 @@ impl LocalCoulomb {
             .map(|k| equation.value_and_slope(at(k)).0)
             .collect();
         let mut best: Option<([f64; 3], [f64; 2], f64)> = None;
+        let tiny = 1e-11 * equation.scale();
         let mut consider = |d: [f64; 2]| {
+            if equation.value_and_slope(d).0.abs() > tiny {
+                return;
+            }
             if let Some(r) = self.slip_impulse(q, d) {
                 let distance = (d[0] - guess[0]).powi(2) + (d[1] - guess[1]).powi(2);
                 if best.is_none_or(|b| distance < b.2) {
@@ -326,12 +330,17 @@ fn bisect_newton(equation: &SlipEquation, mut lo: f64, mut hi: f64, f_lo: f64) -
             hi = theta;
         }
         let newton = theta - value / slope;
+        if slope != 0.0 && (value / slope).abs() <= 1e-15 {
+            // Converged: the step is below rounding (and may not move theta at all).
+            theta = newton;
+            break;
+        }
         theta = if slope != 0.0 && newton > lo && newton < hi {
             newton
         } else {
             0.5 * (lo + hi)
         };
-        if hi - lo <= 1e-15 || (value / slope).abs() <= 1e-16 {
+        if hi - lo <= 1e-15 {
             break;
         }
     }
@@ -347,7 +356,8 @@ fn invert(w: &Block3) -> Option<Block3> {
     ];
     let det = w[0] * cofactor[0] + w[1] * cofactor[1] + w[2] * cofactor[2];
     let norm = w.iter().map(|x| x * x).sum::<f64>().sqrt();
-    if !(det.abs() > 1e-13 * norm * norm * norm) {
+    // Written so that a NaN determinant also counts as singular.
+    if det.is_nan() || det.abs() <= 1e-13 * norm * norm * norm {
         return None;
     }
     let inv_det = 1.0 / det;
