@@ -30,12 +30,16 @@ OBJECT_MESHES := $(patsubst geo/%.geo,meshes/%.msh,$(filter-out geo/stone.geo,$(
 
 export BALLAST_PYTHON := $(abspath $(PY))
 
+# Fragments: Debian packages, the stone family, peer comparisons (one file each).
+include $(sort $(wildcard mk/*.mk))
+
 .PHONY: all setup build meshes gallery test lint clean distclean readme-figure
 
 all: gallery
 
-## Set-up: a project-local venv with the pinned Python tools.
-setup: $(VENV_STAMP)
+## Set-up: Debian packages the build links (mk/system-deps.mk) and a project-local venv
+## with the pinned Python tools.
+setup: $(SYSTEM_DEPS_STAMP) $(VENV_STAMP)
 $(VENV_STAMP): tools/requirements.txt
 	@test -x $(PY) || $(PYTHON3) -m venv $(VENV)
 	$(PY) -m pip install --quiet --disable-pip-version-check -r tools/requirements.txt
@@ -43,7 +47,7 @@ $(VENV_STAMP): tools/requirements.txt
 
 ## Build: the release binaries (cargo only runs when a source changed).
 build: $(BINARIES)
-$(BINARIES) &: $(RUST_SOURCES)
+$(BINARIES) &: $(RUST_SOURCES) | $(SYSTEM_DEPS_STAMP)
 	$(CARGO) build --release --locked --bins
 	@touch $(BINARIES)
 
@@ -52,9 +56,6 @@ meshes: $(OBJECT_MESHES) stones
 meshes/%.msh: geo/%.geo | $(VENV_STAMP)
 	@mkdir -p $(@D)
 	$(GMSH) $< $(GMSH_FLAGS) -o $@
-
-# Fragments: the stone family, peer comparisons, benchmarks (one file each).
-include $(sort $(wildcard mk/*.mk))
 
 ## The default scene: every mesh checked, exported to VTK and tabulated.
 gallery: results/mesh_gallery/summary.json
@@ -68,7 +69,7 @@ docs/img/meshes.png: tools/render_meshes.py results/mesh_gallery/summary.json | 
 	$(PY) $< results/mesh_gallery $@
 
 ## Tests: formatting, lints, then every test (they read what the real tools write).
-test: $(VENV_STAMP) $(OBJECT_MESHES)
+test: $(SYSTEM_DEPS_STAMP) $(VENV_STAMP) $(OBJECT_MESHES)
 	$(CARGO) fmt --check
 	$(CARGO) clippy --release --locked --all-targets -- -D warnings
 	$(CARGO) test --release --locked
