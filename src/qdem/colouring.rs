@@ -21,9 +21,16 @@ pub(crate) const BLOCK_SIZE: usize = 256;
 /// same either way, so the results are too.
 pub(crate) const PARALLEL_MIN_TETS: usize = 8192;
 
+/// Tetra handed to the kernel at once (SIMD lanes of the element kernel).
+pub(crate) const LANES: usize = 4;
+
 /// Blocks of consecutive tetra grouped by colour.
 #[derive(Debug, Clone)]
 pub(crate) struct BlockColouring {
+    /// The tetra (node indices), in the order the blocks cut.
+    pub nodes: Vec<[u32; 4]>,
+    /// Number of nodes (every index in `nodes` is below it).
+    pub node_count: usize,
     /// Element ranges of the blocks, ordered by colour.
     pub blocks: Vec<Range<usize>>,
     /// `blocks[colour_offsets[c]..colour_offsets[c + 1]]` are the blocks of colour c.
@@ -32,7 +39,11 @@ pub(crate) struct BlockColouring {
 
 impl BlockColouring {
     /// Greedy first-fit colouring of the blocks of `nodes` (already in locality order).
-    pub fn new(nodes: &[[u32; 4]], node_count: usize) -> Self {
+    pub fn new(nodes: Vec<[u32; 4]>, node_count: usize) -> Self {
+        assert!(
+            nodes.iter().flatten().all(|&n| (n as usize) < node_count),
+            "block colouring: node index out of range"
+        );
         let ranges: Vec<Range<usize>> = (0..nodes.len())
             .step_by(BLOCK_SIZE)
             .map(|start| start..(start + BLOCK_SIZE).min(nodes.len()))
@@ -101,10 +112,12 @@ impl BlockColouring {
         order.sort_by_key(|&b| (colour[b], b));
         let blocks: Vec<Range<usize>> = order.into_iter().map(|b| ranges[b].clone()).collect();
         let colouring = BlockColouring {
+            nodes,
+            node_count,
             blocks,
             colour_offsets,
         };
-        colouring.verify(nodes, node_count);
+        colouring.verify();
         colouring
     }
 
@@ -115,8 +128,9 @@ impl BlockColouring {
 
     /// Checks the invariant the unsafe scatter relies on: the blocks of one colour touch
     /// disjoint node sets. O(tetra); a failure is a bug here, hence a panic.
-    fn verify(&self, nodes: &[[u32; 4]], node_count: usize) {
-        let mut owner = vec![usize::MAX; node_count];
+    fn verify(&self) {
+        let nodes = &self.nodes;
+        let mut owner = vec![usize::MAX; self.node_count];
         for c in 0..self.colours() {
             for b in self.colour_offsets[c]..self.colour_offsets[c + 1] {
                 for tet in &nodes[self.blocks[b].clone()] {
@@ -133,38 +147,40 @@ impl BlockColouring {
         }
     }
 
-    /// Runs `kernel` on every tetra and adds the four forces it returns to `forces` at the
-    /// tetra's nodes; `partials[b]` is block b's accumulator (reset to default first).
+    /// Runs `kernel` on every tetra, [`LANES`] at a time, and adds the four forces it
+    /// returns per tetra to `forces` at the tetra's nodes. `kernel(first, count, partial)`
+    /// gets tetra `first..first + count` (count ≤ LANES; the forces of lanes ≥ count are
+    /// ignored); `partials[b]` is block b's accumulator (reset to default first).
     /// Deterministic for any thread count (see the module note).
-    pub fn assemble<P, K>(
-        &self,
-        nodes: &[[u32; 4]],
-        forces: &mut [Vec3],
-        partials: &mut [P],
-        kernel: K,
-    ) where
+    pub fn assemble<P, K>(&self, forces: &mut [Vec3], partials: &mut [P], kernel: K)
+    where
         P: Send + Default,
-        K: Fn(usize, &mut P) -> [Vec3; 4] + Sync,
+        K: Fn(usize, usize, &mut P) -> [[Vec3; 4]; LANES] + Sync,
     {
         assert_eq!(partials.len(), self.blocks.len());
-        assert!(nodes
-            .iter()
-            .all(|t| t.iter().all(|&n| (n as usize) < forces.len())));
+        assert_eq!(forces.len(), self.node_count);
+        let nodes = &self.nodes;
         let target = ForceTarget {
             ptr: forces.as_mut_ptr(),
             _lifetime: PhantomData,
         };
         let run_block = |block: &Range<usize>, partial: &mut P| {
             *partial = P::default();
-            for e in block.clone() {
-                let f = kernel(e, partial);
-                for (k, &n) in nodes[e].iter().enumerate() {
-                    // SAFETY: `n < forces.len()` (checked above) and, within one colour,
-                    // no other block touches node n (`verify`), so this is the only
-                    // access to `forces[n]` while the colour runs; a colour's blocks all
-                    // finish before the next colour starts.
-                    unsafe { target.add(n as usize, f[k]) };
+            let mut first = block.start;
+            while first < block.end {
+                let count = LANES.min(block.end - first);
+                let f = kernel(first, count, partial);
+                for (lane, fl) in f.iter().enumerate().take(count) {
+                    for (k, &n) in nodes[first + lane].iter().enumerate() {
+                        // SAFETY: `n < node_count == forces.len()` (checked in `new` and
+                        // above) and, within one colour, no other block touches node n
+                        // (`verify`), so this is the only access to `forces[n]` while the
+                        // colour runs; a colour's blocks all finish before the next
+                        // colour starts.
+                        unsafe { target.add(n as usize, fl[k]) };
+                    }
                 }
+                first += count;
             }
         };
         let parallel = nodes.len() >= PARALLEL_MIN_TETS;
@@ -240,13 +256,13 @@ mod tests {
         let tets: Vec<[u32; 4]> = (0..2000u32)
             .map(|i| [3 * i, 3 * i + 1, 3 * i + 2, 3 * i + 3])
             .collect();
-        let c = BlockColouring::new(&tets, 6004);
+        let c = BlockColouring::new(tets, 6004);
         assert_eq!(c.colours(), 2);
         let mut forces = vec![[0.0; 3]; 6004];
         let mut partials = vec![0u32; c.blocks.len()];
-        c.assemble(&tets, &mut forces, &mut partials, |_, p| {
-            *p += 1;
-            [[1.0; 3]; 4]
+        c.assemble(&mut forces, &mut partials, |_, count, p| {
+            *p += count as u32;
+            [[[1.0; 3]; 4]; LANES]
         });
         assert_eq!(partials.iter().sum::<u32>(), 2000);
         assert_eq!(forces[3][0], 2.0);

@@ -80,6 +80,7 @@ pub(crate) struct ElementSums {
 
 /// Everything eq. 1–8 give for one tetra in its current state.
 #[derive(Debug, Clone, Copy)]
+#[cfg_attr(not(test), allow(dead_code))] // all read by the scalar reference kernel
 pub(crate) struct ElementStress {
     /// Elastic Cauchy stress T_E (eq. 2).
     pub elastic: Sym3,
@@ -183,9 +184,11 @@ pub(crate) fn element_stress(
     }
 }
 
-/// The hot-loop kernel: eq. 1–8 for the stress, eq. 9–10 (in closed form, see the
-/// module note) for the four nodal forces; adds the energy terms to `sums`.
-#[inline(always)]
+/// One tetra's eq. 1–8 for the stress and eq. 9–10 (in closed form, see the module
+/// note) for the four nodal forces; adds the energy terms to `sums`. The scalar
+/// reference of the batched hot loop ([`super::kernel`]), which must match it bit for
+/// bit (tested).
+#[cfg(test)]
 pub(crate) fn element_forces(
     x: &[Vec3; 4],
     v: &[Vec3; 4],

@@ -37,6 +37,7 @@ mod colouring;
 mod element;
 mod energy;
 mod integrate;
+mod kernel;
 mod material;
 mod model;
 mod stability;

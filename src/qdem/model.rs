@@ -2,8 +2,9 @@
 //! quarter-volume lumped masses (seed 004 §2.4) and the block colouring of the tetra.
 
 use super::colouring::{morton_key, BlockColouring};
-use super::element::{element_forces, element_stress, reference_inverse, sym_to_matrix};
+use super::element::{element_stress, reference_inverse, sym_to_matrix};
 use super::element::{ElementSums, Mat3, Vec3};
+use super::kernel::{self, Batch};
 use super::material::{ElementMaterial, QdemMaterial};
 use super::stability::StableTimeStep;
 use crate::mesh::TetMesh;
@@ -28,8 +29,6 @@ pub(crate) struct TetElement {
 #[derive(Debug)]
 pub struct QdemModel {
     reference: Vec<Vec3>,
-    /// Node indices per element, internal order.
-    pub(crate) element_nodes: Vec<[u32; 4]>,
     pub(crate) elements: Vec<TetElement>,
     /// Internal element index → original tetra index.
     element_tet: Vec<u32>,
@@ -148,10 +147,9 @@ impl QdemModel {
         let element_tet: Vec<u32> = records.iter().map(|r| r.1).collect();
         let element_nodes: Vec<[u32; 4]> = element_tet.iter().map(|&t| tets[t as usize]).collect();
         let elements: Vec<TetElement> = records.into_iter().map(|r| r.2).collect();
-        let colouring = BlockColouring::new(&element_nodes, nodes.len());
+        let colouring = BlockColouring::new(element_nodes, nodes.len());
         Ok(QdemModel {
             reference,
-            element_nodes,
             elements,
             element_tet,
             materials: materials.iter().map(ElementMaterial::from).collect(),
@@ -227,17 +225,16 @@ impl QdemModel {
         let n = self.node_count();
         assert!(x.len() == n && v.len() == n && forces.len() == n);
         forces.fill([0.0; 3]);
-        let nodes = &self.element_nodes;
-        let elements = &self.elements;
-        let materials = &self.materials;
+        let batch = Batch {
+            x,
+            v,
+            nodes: &self.colouring.nodes,
+            elements: &self.elements,
+            materials: &self.materials,
+        };
         self.colouring
-            .assemble(nodes, forces, partials, |e, sums: &mut ElementSums| {
-                let tet = &nodes[e];
-                let el = &elements[e];
-                let xe = tet.map(|i| x[i as usize]);
-                let ve = tet.map(|i| v[i as usize]);
-                let m = &materials[el.material as usize];
-                element_forces(&xe, &ve, &el.dm_inv, el.ref_volume, m, sums)
+            .assemble(forces, partials, |first, count, sums: &mut ElementSums| {
+                kernel::forces(&batch, first, count, sums)
             });
         let mut totals = ElementTotals::default();
         for (p, block) in partials.iter().zip(&self.colouring.blocks) {
@@ -254,7 +251,7 @@ impl QdemModel {
     fn first_inverted(&self, x: &[Vec3], block: std::ops::Range<usize>) -> Option<usize> {
         block
             .filter(|&e| {
-                let p = self.element_nodes[e].map(|i| x[i as usize]);
+                let p = self.colouring.nodes[e].map(|i| x[i as usize]);
                 reference_inverse(p).is_none()
             })
             .map(|e| self.element_tet[e] as usize)
@@ -264,7 +261,7 @@ impl QdemModel {
     /// Cauchy stress T = T_E + T_D (eq. 8) of every tetra, in the original tetra order.
     pub fn stresses(&self, x: &[Vec3], v: &[Vec3]) -> Vec<Matrix3<f64>> {
         let mut out = vec![Matrix3::zeros(); self.tet_count()];
-        for (e, tet) in self.element_nodes.iter().enumerate() {
+        for (e, tet) in self.colouring.nodes.iter().enumerate() {
             let el = &self.elements[e];
             let xe = tet.map(|i| x[i as usize]);
             let ve = tet.map(|i| v[i as usize]);
