@@ -4,6 +4,9 @@
 //! [`super::element::element_forces`] (no fused multiply-add), so every path gives
 //! bitwise the same forces.
 
+// Lane loops index several arrays by the same lane: that is the point (SIMD packing).
+#![allow(clippy::needless_range_loop)]
+
 use super::colouring::LANES;
 use super::element::{ElementSums, Vec3};
 use super::material::ElementMaterial;
@@ -57,7 +60,7 @@ fn forces_generic(
     count: usize,
     sums: &mut ElementSums,
 ) -> [[Vec3; 4]; LANES] {
-    debug_assert!(count >= 1 && count <= LANES);
+    debug_assert!((1..=LANES).contains(&count));
     // Gather: edges e_k = x_k − x_0, D_m⁻¹, constants. Lanes past `count` repeat the
     // last tetra (valid data, results dropped).
     let mut e: LaneMat = [[[0.0; LANES]; 3]; 3]; // e[k][d][lane]

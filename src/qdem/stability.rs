@@ -118,7 +118,7 @@ fn compute(model: &QdemModel) -> StableTimeStep {
         if it >= 10 && (rq - history[it - 5]).abs() <= TOLERANCE * rq {
             break;
         }
-        if !(b > 1e-14 * rq.abs().max(f64::MIN_POSITIVE)) {
+        if b.is_nan() || b <= 1e-14 * rq.abs().max(f64::MIN_POSITIVE) {
             break; // an invariant subspace: the Ritz values are exact
         }
         beta.push(b);
