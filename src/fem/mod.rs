@@ -197,7 +197,7 @@ impl FemModel {
         }
         let assembly_s = seconds_since(start);
         let start = Instant::now();
-        let symbolic = SymbolicFactor::new(&self.graph, &pattern)?;
+        let symbolic = SymbolicFactor::new(&self.graph, &pattern, &self.nodes)?;
         let ordering_s = seconds_since(start);
         let anchored = rigid::is_anchored(self, fixed, springs);
         Ok(FemSystem {
