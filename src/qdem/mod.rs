@@ -10,10 +10,16 @@
 //!   λ_D, µ_D from the shear and bulk viscosities ([`QdemMaterial`]);
 //! - eq. 8 (T = T_E + T_D): [`QdemModel::stresses`] and the force kernel;
 //! - eq. 9–10 (forces on the twelve sub-surfaces of Figure 1a): [`subsurface_forces`]
-//!   literally, and the hot loop in the equivalent closed form f_k = −V T ∇N_k (current
-//!   configuration; a test checks they agree to round-off);
-//! - eq. 11 (sum over the tetra sharing a particle): the coloured block assembly;
+//!   literally, and the hot loop (`kernel`, four tetra per SIMD batch) in the equivalent
+//!   closed form f_k = −(1/6) T (adj D_s)_k = −V T ∇N_k in the current configuration
+//!   (tests: equal to round-off; batched = scalar bit for bit);
+//! - eq. 11 (sum over the tetra sharing a particle): the coloured block assembly
+//!   (`colouring`: Morton-ordered blocks of 256 tetra, blocks sharing a node get
+//!   different colours; bitwise identical results for any thread count);
 //! - §2.4 quarter masses and explicit Verlet: [`QdemModel::node_masses`], [`QdemSolver`];
+//! - stable time step: [`stability`] (Lanczos ω_max of the lumped-mass mesh, viscous
+//!   correction (√(1+ξ²) − ξ)); a run's dt is checked against it, and a blow-up stops
+//!   with an error that names it;
 //! - eq. 14 (Kelvin–Voigt creep): checked in `tests/qdem_core.rs`.
 //!
 //! Typical use:
