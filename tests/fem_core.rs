@@ -554,6 +554,35 @@ fn block_on_a_winkler_bed_settles_and_bounces() {
 }
 
 #[test]
+fn serial_and_parallel_runs_agree_bit_for_bit() {
+    let mesh = BoxMesh::beam([48, 4, 4]);
+    let model = FemModel::new(&mesh.nodes, &mesh.tets, concrete()).unwrap();
+    let fixed = DofSet::clamped(&mesh.x_face(false));
+    let loads = mesh.tip_loads(TIP_LOAD);
+    let run = || {
+        let mut system = model.system(&fixed, None).unwrap();
+        let u = system.static_solve(&loads).unwrap().displacement;
+        let f = system
+            .modes(3, &ModeOptions::default())
+            .unwrap()
+            .eigenvalues;
+        (u, f)
+    };
+    let serial = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap()
+        .install(run);
+    let parallel = rayon::ThreadPoolBuilder::new()
+        .num_threads(4)
+        .build()
+        .unwrap()
+        .install(run);
+    assert!(serial.0 == parallel.0, "displacements differ");
+    assert!(serial.1 == parallel.1, "eigenvalues differ");
+}
+
+#[test]
 fn bad_input_is_reported() {
     let mesh = BoxMesh::new([1.0, 1.0, 1.0], [1, 1, 1]);
     let mut tets = mesh.tets.clone();
