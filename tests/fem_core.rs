@@ -30,52 +30,8 @@ struct BoxMesh {
 
 impl BoxMesh {
     fn new(size: [f64; 3], cells: [usize; 3]) -> Self {
-        let [nx, ny, nz] = cells;
-        let mut nodes = Vec::with_capacity((nx + 1) * (ny + 1) * (nz + 1));
-        for k in 0..=nz {
-            for j in 0..=ny {
-                for i in 0..=nx {
-                    nodes.push(Point3::new(
-                        size[0] * i as f64 / nx as f64,
-                        size[1] * j as f64 / ny as f64,
-                        size[2] * k as f64 / nz as f64,
-                    ));
-                }
-            }
-        }
-        let id = |i: usize, j: usize, k: usize| (i + (nx + 1) * (j + (ny + 1) * k)) as u32;
-        let permutations = [
-            [0, 1, 2],
-            [0, 2, 1],
-            [1, 0, 2],
-            [1, 2, 0],
-            [2, 0, 1],
-            [2, 1, 0],
-        ];
-        let mut tets = Vec::with_capacity(6 * nx * ny * nz);
-        for k in 0..nz {
-            for j in 0..ny {
-                for i in 0..nx {
-                    for p in permutations {
-                        // Kuhn simplex: walk from corner (0,0,0) to (1,1,1) along p.
-                        let mut corner = [i, j, k];
-                        let mut tet = [id(i, j, k); 4];
-                        for (step, &axis) in p.iter().enumerate() {
-                            corner[axis] += 1;
-                            tet[step + 1] = id(corner[0], corner[1], corner[2]);
-                        }
-                        tets.push(tet);
-                    }
-                }
-            }
-        }
-        // Positive orientation.
-        for tet in &mut tets {
-            let x = tet.map(|n| nodes[n as usize]);
-            if (x[1] - x[0]).cross(&(x[2] - x[0])).dot(&(x[3] - x[0])) < 0.0 {
-                tet.swap(2, 3);
-            }
-        }
+        let (nodes, tets) =
+            ballast::qdem::structured_box(nalgebra::Vector3::new(size[0], size[1], size[2]), cells);
         BoxMesh { nodes, tets, cells }
     }
 
