@@ -19,5 +19,6 @@ pub mod output;
 pub mod post;
 pub mod qdem;
 pub mod scene;
+pub mod signal;
 
 pub use error::{Error, Result};

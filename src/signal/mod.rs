@@ -1,0 +1,1 @@
+//! Signal processing for solver time series: spectra, dominant frequencies, decay fits.
