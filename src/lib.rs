@@ -20,5 +20,6 @@ pub mod post;
 pub mod qdem;
 pub mod scene;
 pub mod signal;
+pub mod solid;
 
 pub use error::{Error, Result};

@@ -104,7 +104,8 @@ pub struct QdemCli {
 
 /// Runs `ballast-qdem`.
 pub fn run_qdem(cli: QdemCli) -> crate::Result<()> {
-    planned(&cli.run, "ballast-qdem (QDEM solver)")
+    let ctx = cli.run.context()?;
+    crate::solid::qdem_run::run(&ctx, cli.force)
 }
 
 /// `ballast-fem`: the linear-tetra reference solver.

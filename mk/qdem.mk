@@ -1,0 +1,30 @@
+# QDEM verification scenes of seed 004 §3 (scenes/cantilever_*.toml, creep_recovery.toml,
+# damped_vibration.toml) and the meshes they use: the cantilever of geo/cantilever.geo at
+# several edge lengths h (meshes/cantilever_h<h>.msh).
+# Included by the main Makefile, which defines GMSH, GMSH_FLAGS, RELEASE and VENV_STAMP.
+
+CANTILEVER_H := 0.11 0.05 0.03 0.02 0.0105
+QDEM_SCENES := cantilever_static cantilever_vibration creep_recovery damped_vibration
+QDEM_QUICK_MESHES := meshes/cantilever_h0.05.msh meshes/cantilever_h0.11.msh
+QDEM_QUICK := $(QDEM_SCENES:%=results/%-quick/summary.json)
+
+.PHONY: qdem-quick paper
+
+meshes/cantilever_h%.msh: geo/cantilever.geo | $(VENV_STAMP)
+	@mkdir -p $(@D)
+	$(GMSH) $< $(GMSH_FLAGS) -setnumber h $* -o $@
+
+## The quick presets (seconds each): part of the default `make`.
+qdem-quick: $(QDEM_QUICK)
+results/%-quick/summary.json: scenes/%.toml $(QDEM_QUICK_MESHES) $(RELEASE)/ballast-qdem
+	$(RELEASE)/ballast-qdem $< --preset quick --out $(@D)
+
+## The paper's resolution and the convergence table over h (long: not part of tests).
+QDEM_LEVELS := quick base h0.02 paper
+QDEM_CONVERGENCE := $(foreach s,cantilever_static cantilever_vibration,$(foreach l,$(QDEM_LEVELS),results/paper/$(s)-$(l)/summary.json))
+paper: $(QDEM_CONVERGENCE) results/paper/damped_vibration-paper/summary.json results/paper/creep_recovery-base/summary.json
+	$(PY) tools/qdem_table.py results/paper | tee results/paper/qdem_table.md
+results/paper/%/summary.json: $(RELEASE)/ballast-qdem $(foreach h,$(CANTILEVER_H),meshes/cantilever_h$(h).msh)
+	scene=$$(echo $* | sed 's/-[^-]*$$//'); level=$$(echo $* | sed 's/.*-//'); \
+	if [ $$level = base ]; then preset=; else preset="--preset $$level"; fi; \
+	$(RELEASE)/ballast-qdem scenes/$$scene.toml $$preset --out $(@D)
