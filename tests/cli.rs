@@ -84,7 +84,6 @@ fn planned_solvers_say_not_implemented_with_status_2() {
     for (binary, args) in [
         (BINARIES[0].1, vec![scene]),
         (BINARIES[1].1, vec![scene]),
-        (BINARIES[2].1, vec![scene, "--preset", "quick"]),
         (BINARIES[3].1, vec!["static", scene]),
         (BINARIES[3].1, vec!["modes", scene]),
     ] {

@@ -5,6 +5,7 @@
 //! outputs, [`analysis`] computes the headline figures.
 
 pub mod analysis;
+pub mod fem_run;
 pub mod qdem_run;
 pub mod scene;
 pub mod setup;

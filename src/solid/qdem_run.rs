@@ -69,7 +69,7 @@ pub fn run(ctx: &RunContext, force: bool) -> Result<()> {
     let mesh_path = SolidScene::resolve(&ctx.scene_path, &scene.mesh.file);
     let mesh = timer.time("read mesh", || read_msh(&mesh_path))?;
     std::fs::create_dir_all(&ctx.out_dir).map_err(|e| Error::io(&ctx.out_dir, e))?;
-    eprintln!(
+    println!(
         "ballast-qdem: {} — {} nodes, {} tetra, {threads} threads",
         mesh_path.display(),
         mesh.nodes.len(),
@@ -108,7 +108,7 @@ pub fn run(ctx: &RunContext, force: bool) -> Result<()> {
     }
     let summary = summary.wall_times(&timer);
     write_json(ctx.out_dir.join("summary.json"), &summary.to_json())?;
-    eprintln!(
+    println!(
         "ballast-qdem: wrote {}",
         ctx.out_dir.join("summary.json").display()
     );
@@ -190,7 +190,7 @@ fn run_case(
     } else {
         format!("case {}: ", case.name)
     };
-    eprintln!(
+    println!(
         "ballast-qdem: {label}stable time step {:.4e} s (ω_max {:.4e} rad/s, viscous ratio \
          ξ = {:.3e}); dt = {dt:.4e} s ({:.2} × stable)",
         stable.stable,
@@ -258,7 +258,7 @@ fn run_case(
     let stepping_s = start.elapsed().as_secs_f64();
     timer.add("stepping", start.elapsed());
     let e = &state.energies;
-    eprintln!(
+    println!(
         "ballast-qdem: {label}{steps} steps in {stepping_s:.1} s ({:.3e} tetra updates/s); \
          energy balance error {:.2e} J ({:.2e} relative)",
         steps as f64 * model.tet_count() as f64 / stepping_s,
