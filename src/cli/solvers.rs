@@ -133,7 +133,7 @@ pub enum FemCommand {
 /// Runs `ballast-fem`.
 pub fn run_fem(cli: FemCli) -> crate::Result<()> {
     match cli.command {
-        FemCommand::Static(run) => planned(&run, "ballast-fem static (FEM solver)"),
-        FemCommand::Modes(run) => planned(&run, "ballast-fem modes (FEM solver)"),
+        FemCommand::Static(run) => crate::solid::fem_run::run_static(&run.context()?),
+        FemCommand::Modes(run) => crate::solid::fem_run::run_modes(&run.context()?),
     }
 }
