@@ -1,8 +1,11 @@
 # ballast: geometry -> meshes -> solvers -> VTK/CSV -> charts.
 #
-#   make          set up what is missing, build, mesh everything, run the default scene
+#   make          set up what is missing, build, mesh everything, run the default scenes
+#                 (mesh gallery, then the QDEM quick scenes and their chart)
 #   make test     set up, check formatting and lints, run every test
 #   make meshes   mesh every geo/*.geo and the stone family
+#   make paper    the QDEM scenes at the paper's resolution and the convergence table
+#   make bench    QDEM throughput at paper resolution on 1 and 2 threads
 #   make clean    remove build outputs, meshes and results (keeps the venv)
 #
 # Every step has real file dependencies: a second `make` does nothing.
@@ -35,7 +38,7 @@ include $(sort $(wildcard mk/*.mk))
 
 .PHONY: all setup build meshes gallery test lint clean distclean readme-figure
 
-all: gallery
+all: gallery qdem-quick $(QDEM_CHART)
 
 ## Set-up: Debian packages the build links (mk/system-deps.mk) and a project-local venv
 ## with the pinned Python tools.
@@ -69,7 +72,7 @@ docs/img/meshes.png: tools/render_meshes.py results/mesh_gallery/summary.json | 
 	$(PY) $< results/mesh_gallery $@
 
 ## Tests: formatting, lints, then every test (they read what the real tools write).
-test: $(SYSTEM_DEPS_STAMP) $(VENV_STAMP) $(OBJECT_MESHES)
+test: $(SYSTEM_DEPS_STAMP) $(VENV_STAMP) $(OBJECT_MESHES) $(QDEM_QUICK_MESHES)
 	$(CARGO) fmt --check
 	$(CARGO) clippy --release --locked --all-targets -- -D warnings
 	$(CARGO) test --release --locked

@@ -5,10 +5,10 @@
 
 CANTILEVER_H := 0.11 0.05 0.03 0.02 0.0105
 QDEM_SCENES := cantilever_static cantilever_vibration creep_recovery damped_vibration
-QDEM_QUICK_MESHES := meshes/cantilever_h0.05.msh meshes/cantilever_h0.11.msh
+QDEM_QUICK_MESHES := meshes/cantilever_h0.03.msh meshes/cantilever_h0.05.msh meshes/cantilever_h0.11.msh
 QDEM_QUICK := $(QDEM_SCENES:%=results/%-quick/summary.json)
 
-.PHONY: qdem-quick paper
+.PHONY: qdem-quick paper bench
 
 meshes/cantilever_h%.msh: geo/cantilever.geo | $(VENV_STAMP)
 	@mkdir -p $(@D)
@@ -20,11 +20,27 @@ results/%-quick/summary.json: scenes/%.toml $(QDEM_QUICK_MESHES) $(RELEASE)/ball
 	$(RELEASE)/ballast-qdem $< --preset quick --out $(@D)
 
 ## The paper's resolution and the convergence table over h (long: not part of tests).
-QDEM_LEVELS := quick base h0.02 paper
-QDEM_CONVERGENCE := $(foreach s,cantilever_static cantilever_vibration,$(foreach l,$(QDEM_LEVELS),results/paper/$(s)-$(l)/summary.json))
-paper: $(QDEM_CONVERGENCE) results/paper/damped_vibration-paper/summary.json results/paper/creep_recovery-base/summary.json
-	$(PY) tools/qdem_table.py results/paper | tee results/paper/qdem_table.md
+QDEM_LEVELS := h005 base h002 paper
+QDEM_PAPER_RUNS := $(foreach s,cantilever_static cantilever_vibration,$(foreach l,$(QDEM_LEVELS),results/paper/$(s)-$(l)/summary.json)) \
+  results/paper/damped_vibration-paper/summary.json results/paper/creep_recovery-base/summary.json
+paper: $(QDEM_PAPER_RUNS) | $(VENV_STAMP)
+	$(PY) tools/qdem_report.py paper results/paper | tee results/paper/qdem_table.md
 results/paper/%/summary.json: $(RELEASE)/ballast-qdem $(foreach h,$(CANTILEVER_H),meshes/cantilever_h$(h).msh)
 	scene=$$(echo $* | sed 's/-[^-]*$$//'); level=$$(echo $* | sed 's/.*-//'); \
 	if [ $$level = base ]; then preset=; else preset="--preset $$level"; fi; \
 	$(RELEASE)/ballast-qdem scenes/$$scene.toml $$preset --out $(@D)
+
+## Throughput at paper resolution (200 steps) on 1 and 2 threads, with peak memory.
+bench: $(RELEASE)/ballast-qdem meshes/cantilever_h0.0105.msh | $(VENV_STAMP)
+	@for t in 1 2; do \
+	  mkdir -p results/bench/threads-$$t; \
+	  /usr/bin/time -f %M -o results/bench/threads-$$t/max_rss_kb \
+	    $(RELEASE)/ballast-qdem scenes/cantilever_static.toml --preset bench --threads $$t \
+	    --out results/bench/threads-$$t >/dev/null || exit 1; \
+	done
+	$(PY) tools/qdem_report.py bench results/bench | tee results/bench/qdem_bench.md
+
+## Chart of the quick runs (vibration, creep–recovery, damped vibration).
+QDEM_CHART := results/qdem_quick.png
+$(QDEM_CHART): tools/qdem_report.py $(QDEM_QUICK) | $(VENV_STAMP)
+	$(PY) $< charts $@

@@ -298,8 +298,8 @@ fn creep_case(
         &run.dir.join("creep.csv"),
         times,
         strain,
-        &scaled(tau_eq14, stress / e),
-        &scaled(tau_corrected, strain_inf),
+        &scaled(tau_eq14, fitted_amplitude),
+        &scaled(tau_corrected, fitted_amplitude),
     )?;
     Ok(json!({
         "name": run.name,
@@ -366,8 +366,9 @@ fn uniform_dominant_component(s: &ProbeSeries) -> (Vec<f64>, Vec<f64>) {
     )
 }
 
-/// Writes `creep.csv` (time, strain of the run, eq. 14, constrained closed form) for a
-/// case, for charts.
+/// Writes `creep.csv` (time, strain of the run, eq. 14 and the constrained closed form,
+/// both scaled to the run's fitted plateau so that the columns compare time constants)
+/// for a case, for charts.
 pub fn write_creep_csv(
     path: &Path,
     times: &[f64],
