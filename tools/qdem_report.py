@@ -42,12 +42,12 @@ def paper(root):
             d = s["figures"]["tip_deflection_m"] * 1e6
             row["defl"] = f"{d:.3f}"
             row["defl_err"] = f"{100 * (d / SEED_DEFLECTION_UM - 1):+.2f} %"
-            row["t_static"] = f"{s['wall_time_s'].get('total', 0):.0f}"
+            row["t_static"] = f"{sum(s['wall_time_s'].values()):.0f}"
         if v:
             f = v["figures"]["first_frequency_hz"]
             row["freq"] = f"{f:.3f}"
             row["freq_err"] = f"{100 * (f / SEED_FREQUENCY_HZ - 1):+.2f} %"
-            row["t_vib"] = f"{v['wall_time_s'].get('total', 0):.0f}"
+            row["t_vib"] = f"{sum(v['wall_time_s'].values()):.0f}"
         rows.append(row)
     print("| mesh | nodes | tetra | dt (s) | tip deflection (µm) | vs seed 91.94 | "
           "wall (s) | first frequency (Hz) | vs seed 26.98 | wall (s) |")
