@@ -106,7 +106,7 @@ fn cantilever_static_quick_matches_the_paper_and_writes_readable_outputs() {
     // The VTK series: VTK reads every frame; the last frame's displacement at the tip
     // centre node equals the probe.
     let pvd = dir.path().join("mesh.pvd");
-    let read = common::read_with_vtk(&[pvd.clone()]);
+    let read = common::read_with_vtk(std::slice::from_ref(&pvd));
     let frames = read[pvd.to_str().unwrap()]["frames"]
         .as_array()
         .expect("frames")

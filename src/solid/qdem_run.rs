@@ -242,10 +242,7 @@ fn run_case(
             )?;
             damped = false;
         }
-        solver.step(&mut state).map_err(|e| {
-            bar.abandon();
-            e
-        })?;
+        solver.step(&mut state).inspect_err(|_| bar.abandon())?;
         if step % sample_every == 0 || step == steps {
             output.sample(&state, &model)?;
             bar.set_position(step);
