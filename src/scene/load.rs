@@ -51,16 +51,71 @@ pub fn load_scene_with_source<T: DeserializeOwned + Validate>(
     scene_from_str(path, &text, preset)
 }
 
+/// Like [`load_scene_with_source`], then applies command-line overrides
+/// `KEY.PATH=VALUE` (`--set qdem.dt_factor=0.5`) over the preset: VALUE is read as a
+/// TOML value (`0.5`, `"1 ms"`, `[1, 2]`), or as a string when it is not one.
+pub fn load_scene_with_overrides<T: DeserializeOwned + Validate>(
+    path: &Path,
+    preset: Option<&str>,
+    overrides: &[String],
+) -> Result<(T, toml::Table)> {
+    let text = std::fs::read_to_string(path).map_err(|err| Error::io(path, err))?;
+    scene_from_str_with_overrides(path, &text, preset, overrides)
+}
+
 /// Reads a scene from TOML `text`; `path` is used only to name the file in messages.
 pub fn scene_from_str<T: DeserializeOwned + Validate>(
     path: &Path,
     text: &str,
     preset: Option<&str>,
 ) -> Result<(T, toml::Table)> {
+    scene_from_str_with_overrides(path, text, preset, &[])
+}
+
+/// One `KEY.PATH=VALUE` override as a nested table.
+fn override_table(text: &str) -> std::result::Result<toml::Table, String> {
+    let (key, value) = text
+        .split_once('=')
+        .ok_or_else(|| format!("--set {text}: expected KEY=VALUE (e.g. qdem.dt_factor=0.5)"))?;
+    let key = key.trim();
+    if key.is_empty() || key.split('.').any(str::is_empty) {
+        return Err(format!("--set {text}: \"{key}\" is not a dotted key"));
+    }
+    let value = value.trim();
+    let value = match format!("v = {value}").parse::<toml::Table>() {
+        Ok(mut t) => t.remove("v").expect("parsed"),
+        Err(_) => toml::Value::String(value.to_string()),
+    };
+    let mut table = toml::Table::new();
+    let mut parts: Vec<&str> = key.split('.').collect();
+    let last = parts.pop().expect("non-empty");
+    table.insert(last.to_string(), value);
+    for part in parts.into_iter().rev() {
+        let mut outer = toml::Table::new();
+        outer.insert(part.to_string(), toml::Value::Table(table));
+        table = outer;
+    }
+    Ok(table)
+}
+
+fn scene_from_str_with_overrides<T: DeserializeOwned + Validate>(
+    path: &Path,
+    text: &str,
+    preset: Option<&str>,
+    overrides: &[String],
+) -> Result<(T, toml::Table)> {
     let table = parse_table(path, text)?;
-    let merged = apply_preset(table, preset).map_err(|what| Error::invalid(path, what))?;
+    let mut merged = apply_preset(table, preset).map_err(|what| Error::invalid(path, what))?;
+    for text in overrides {
+        let over = override_table(text).map_err(Error::Message)?;
+        merge_tables(&mut merged, over);
+    }
     let with_preset = |what: String| match preset {
         Some(name) => Error::invalid(path, format!("{what} (with preset {name})")),
+        None if !overrides.is_empty() => Error::invalid(
+            path,
+            format!("{what} (with --set {})", overrides.join(" --set ")),
+        ),
         None => Error::invalid(path, what),
     };
     let scene: T = deserialize_table(&merged).map_err(with_preset)?;
@@ -355,5 +410,26 @@ mod tests {
         assert_eq!(line_and_column("ab\ncµd", 0), (1, 1));
         assert_eq!(line_and_column("ab\ncµd", 3), (2, 1));
         assert_eq!(line_and_column("ab\ncµd", 6), (2, 3));
+    }
+}
+
+#[cfg(test)]
+mod override_tests {
+    use super::*;
+
+    #[test]
+    fn overrides_build_nested_tables_and_fall_back_to_strings() {
+        let t = override_table("qdem.dt_factor=0.5").unwrap();
+        assert_eq!(t["qdem"]["dt_factor"].as_float(), Some(0.5));
+        let t = override_table("mesh.file=../meshes/a.msh").unwrap();
+        assert_eq!(t["mesh"]["file"].as_str(), Some("../meshes/a.msh"));
+        let t = override_table("qdem.duration=\"1 ms\"").unwrap();
+        assert_eq!(t["qdem"]["duration"].as_str(), Some("1 ms"));
+        assert!(override_table("qdem.dt_factor")
+            .unwrap_err()
+            .contains("KEY=VALUE"));
+        assert!(override_table("qdem..x=1")
+            .unwrap_err()
+            .contains("dotted key"));
     }
 }

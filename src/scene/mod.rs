@@ -27,8 +27,8 @@ pub mod units;
 mod validate;
 
 pub use load::{
-    apply_preset, deserialize_table, load_scene, load_scene_with_source, merge_tables, parse_table,
-    scene_from_str, PRESET_TABLE,
+    apply_preset, deserialize_table, load_scene, load_scene_with_overrides, load_scene_with_source,
+    merge_tables, parse_table, scene_from_str, PRESET_TABLE,
 };
 pub use material::Material;
 pub use quantity::{

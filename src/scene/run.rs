@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use serde::de::DeserializeOwned;
 
-use super::load::load_scene_with_source;
+use super::load::load_scene_with_overrides;
 use super::validate::Validate;
 use crate::{Error, Result};
 
@@ -24,6 +24,10 @@ pub struct RunArgs {
     /// Worker threads [default: all cores].
     #[arg(long, value_name = "N")]
     pub threads: Option<usize>,
+    /// Override a scene value after the preset, e.g. `--set qdem.dt_factor=0.5`
+    /// (repeatable; VALUE is TOML, or a string).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub set: Vec<String>,
 }
 
 impl RunArgs {
@@ -63,6 +67,7 @@ impl RunArgs {
             preset: self.preset.clone(),
             out_dir,
             threads: self.threads,
+            overrides: self.set.clone(),
         })
     }
 }
@@ -89,13 +94,15 @@ pub struct RunContext {
     pub out_dir: PathBuf,
     /// Requested worker threads (at least 1); `None` lets rayon use all cores.
     pub threads: Option<usize>,
+    /// `--set KEY=VALUE` overrides applied after the preset.
+    pub overrides: Vec<String>,
 }
 
 impl RunContext {
     /// Loads and validates the scene with this run's preset; also returns the merged
     /// TOML for the summary's `inputs`.
     pub fn load_scene<T: DeserializeOwned + Validate>(&self) -> Result<(T, toml::Table)> {
-        load_scene_with_source(&self.scene_path, self.preset.as_deref())
+        load_scene_with_overrides(&self.scene_path, self.preset.as_deref(), &self.overrides)
     }
 
     /// Sizes rayon's global pool to the requested thread count and returns the number
@@ -185,6 +192,7 @@ mod tests {
             preset: None,
             out_dir: "o".into(),
             threads: Some(0),
+            overrides: Vec::new(),
         };
         assert!(ctx.configure_threads().is_err());
     }

@@ -82,6 +82,7 @@ impl PhaseTimer {
 ///     preset: Some("quick".into()),
 ///     out_dir: "results/cantilever-quick".into(),
 ///     threads: Some(2),
+///     overrides: Vec::new(),
 /// };
 /// let inputs: toml::Table = "steps = 10".parse().unwrap();
 /// let mut timer = PhaseTimer::new();
@@ -195,6 +196,7 @@ mod tests {
             preset: None,
             out_dir: "results/impact".into(),
             threads: Some(3),
+            overrides: Vec::new(),
         };
         let inputs: toml::Table =
             "a = 1\nb = \"x\"\nc = [1.5, nan]\nd = 1979-05-27\n[t]\ne = true\n"
