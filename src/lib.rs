@@ -9,6 +9,7 @@
 #![warn(missing_docs)]
 
 pub mod cli;
+pub mod contact;
 pub mod error;
 pub mod fc3d;
 pub mod fem;

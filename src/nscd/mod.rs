@@ -24,11 +24,16 @@
 //! is at most the tolerance, or at the sweep cap; [`nlgs::Stopping::Sweeps`] makes a
 //! fixed number of sweeps (the seed's n_DDM).
 
+pub mod body;
+pub mod body_nlgs;
 pub mod coulomb;
 pub mod nlgs;
 pub mod problem;
 pub mod residual;
+pub mod step;
 
+pub use body::{Body, BodyShape, Motion, Prescribed};
 pub use coulomb::{ContactStatus, LocalCoulomb};
 pub use nlgs::{ErrorCheck, NlgsOptions, NlgsReport, Stopping};
 pub use problem::{Block3, DelassusBlocks, FrictionProblem};
+pub use step::{FrictionTable, MoreauJean, SolvedContact, StepParams, StepReport};

@@ -1,0 +1,135 @@
+//! Broad phase: sort-and-sweep on axis-aligned boxes inflated by the alert distance.
+//!
+//! Bounded bodies are sorted by the lower x bound of their inflated box and swept once;
+//! a pair whose boxes overlap on all three axes is a candidate. Half-spaces have no box:
+//! each is paired with the bounded bodies whose box comes within the alert distance of
+//! its plane. Pairs of two bodies that cannot move are skipped. The result is sorted, so
+//! the contact order (and the NLGS order) does not depend on the sweep.
+
+use nalgebra::{Isometry3, Point3, Unit, Vector3};
+
+/// An axis-aligned box.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Aabb {
+    /// Lower corner.
+    pub min: Point3<f64>,
+    /// Upper corner.
+    pub max: Point3<f64>,
+}
+
+/// What the broad phase needs of a body.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum BroadShape {
+    /// A bounded body with its box (world).
+    Bounded(Aabb),
+    /// A half-space: a point of its plane and its outward unit normal (world).
+    HalfSpace(Point3<f64>, Unit<Vector3<f64>>),
+}
+
+/// The box of `points` (local) placed at `pose`.
+pub fn aabb_of(points: &[Point3<f64>], pose: &Isometry3<f64>) -> Aabb {
+    let mut min = Point3::from(Vector3::repeat(f64::INFINITY));
+    let mut max = Point3::from(Vector3::repeat(f64::NEG_INFINITY));
+    for p in points {
+        let q = pose * p;
+        min = min.inf(&q);
+        max = max.sup(&q);
+    }
+    Aabb { min, max }
+}
+
+/// Candidate pairs `(i, j)`, `i < j`, sorted, of bodies within `alert` of each other, at
+/// least one of them `movable`.
+pub fn candidate_pairs(shapes: &[BroadShape], movable: &[bool], alert: f64) -> Vec<(u32, u32)> {
+    let half = 0.5 * alert;
+    let mut bounded: Vec<(u32, Aabb)> = shapes
+        .iter()
+        .enumerate()
+        .filter_map(|(i, s)| match s {
+            BroadShape::Bounded(b) => Some((
+                i as u32,
+                Aabb {
+                    min: b.min - Vector3::repeat(half),
+                    max: b.max + Vector3::repeat(half),
+                },
+            )),
+            BroadShape::HalfSpace(..) => None,
+        })
+        .collect();
+    bounded.sort_by(|a, b| a.1.min.x.total_cmp(&b.1.min.x).then(a.0.cmp(&b.0)));
+    let mut pairs = Vec::new();
+    for (k, (i, a)) in bounded.iter().enumerate() {
+        for (j, b) in &bounded[k + 1..] {
+            if b.min.x > a.max.x {
+                break;
+            }
+            let overlap = b.min.y <= a.max.y
+                && a.min.y <= b.max.y
+                && b.min.z <= a.max.z
+                && a.min.z <= b.max.z;
+            if overlap && (movable[*i as usize] || movable[*j as usize]) {
+                pairs.push(((*i).min(*j), (*i).max(*j)));
+            }
+        }
+    }
+    for (h, shape) in shapes.iter().enumerate() {
+        let BroadShape::HalfSpace(origin, normal) = shape else {
+            continue;
+        };
+        for (i, b) in &bounded {
+            if !(movable[h] || movable[*i as usize]) {
+                continue;
+            }
+            // The box's lowest point along the normal, relative to the plane.
+            let centre = Point3::from(0.5 * (b.min.coords + b.max.coords));
+            let half_size = 0.5 * (b.max - b.min);
+            let reach = normal.x.abs() * half_size.x
+                + normal.y.abs() * half_size.y
+                + normal.z.abs() * half_size.z;
+            if normal.dot(&(centre - origin)) - reach <= half {
+                let h = h as u32;
+                pairs.push((h.min(*i), h.max(*i)));
+            }
+        }
+    }
+    pairs.sort_unstable();
+    pairs.dedup();
+    pairs
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cube_at(x: f64, y: f64, z: f64) -> BroadShape {
+        BroadShape::Bounded(Aabb {
+            min: Point3::new(x, y, z),
+            max: Point3::new(x + 1.0, y + 1.0, z + 1.0),
+        })
+    }
+
+    #[test]
+    fn sweep_finds_overlaps_within_the_alert_distance() {
+        let shapes = [
+            cube_at(0.0, 0.0, 0.0),
+            cube_at(1.05, 0.0, 0.0), // 0.05 from the first
+            cube_at(3.0, 0.0, 0.0),  // far
+            cube_at(0.0, 1.0, 0.5),  // touching the first
+            BroadShape::HalfSpace(Point3::origin(), Vector3::z_axis()),
+        ];
+        let movable = [true, true, true, true, false];
+        assert_eq!(
+            candidate_pairs(&shapes, &movable, 0.1),
+            vec![(0, 1), (0, 3), (0, 4), (1, 3), (1, 4), (2, 4)]
+        );
+        assert_eq!(
+            candidate_pairs(&shapes, &movable, 0.01),
+            vec![(0, 3), (0, 4), (1, 4), (2, 4)]
+        );
+        // Two fixed bodies never pair.
+        assert_eq!(
+            candidate_pairs(&shapes, &[false, false, false, false, false], 0.1),
+            vec![]
+        );
+    }
+}

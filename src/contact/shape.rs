@@ -1,0 +1,132 @@
+//! Collision shapes of NSCD bodies: convex polyhedra (parry's `ConvexPolyhedron` behind a
+//! support-face rule that keeps whole faces) and half-spaces (planes).
+
+use nalgebra::{Point3, Unit, Vector3};
+use parry3d_f64::shape::{
+    ConvexPolyhedron, PackedFeatureId, PolygonalFeature, PolygonalFeatureMap, SupportMap,
+};
+
+/// A convex polyhedron for contact detection.
+///
+/// parry's polygonal support feature holds at most four vertices and takes the first four
+/// of a larger face, which on a cut stone can be a sliver at one corner. Here a face with
+/// more vertices is represented by four vertices spread evenly around it (indices
+/// 0, n/4, n/2, 3n/4 of its loop), so the contact polygon spans the face.
+#[derive(Debug, Clone)]
+pub struct ConvexShape {
+    polyhedron: ConvexPolyhedron,
+}
+
+impl ConvexShape {
+    /// The convex hull of `points` (local coordinates); `None` if degenerate.
+    pub fn from_points(points: &[Point3<f64>]) -> Option<Self> {
+        ConvexPolyhedron::from_convex_hull(points).map(|polyhedron| ConvexShape { polyhedron })
+    }
+
+    /// The underlying parry polyhedron.
+    pub fn polyhedron(&self) -> &ConvexPolyhedron {
+        &self.polyhedron
+    }
+
+    /// The hull's vertices (local coordinates).
+    pub fn points(&self) -> &[Point3<f64>] {
+        self.polyhedron.points()
+    }
+
+    /// The radius of the smallest origin-centred sphere holding the shape.
+    pub fn bounding_radius(&self) -> f64 {
+        self.points()
+            .iter()
+            .map(|p| p.coords.norm())
+            .fold(0.0, f64::max)
+    }
+}
+
+impl SupportMap for ConvexShape {
+    #[inline]
+    fn local_support_point(&self, dir: &Vector3<f64>) -> Point3<f64> {
+        self.polyhedron.local_support_point(dir)
+    }
+}
+
+impl PolygonalFeatureMap for ConvexShape {
+    fn local_support_feature(&self, dir: &Unit<Vector3<f64>>, out_feature: &mut PolygonalFeature) {
+        let faces = self.polyhedron.faces();
+        let mut best = 0;
+        let mut best_dot = faces[0].normal.dot(dir);
+        for (index, face) in faces.iter().enumerate().skip(1) {
+            let dot = face.normal.dot(dir);
+            if dot > best_dot {
+                best = index;
+                best_dot = dot;
+            }
+        }
+        let face = &faces[best];
+        let first = face.first_vertex_or_edge as usize;
+        let count = face.num_vertices_or_edges as usize;
+        let vertices = &self.polyhedron.vertices_adj_to_face()[first..first + count];
+        let edges = &self.polyhedron.edges_adj_to_face()[first..first + count];
+        let taken = count.min(4);
+        let points = self.polyhedron.points();
+        for slot in 0..taken {
+            let k = slot * count / taken;
+            out_feature.vertices[slot] = points[vertices[k] as usize];
+            out_feature.vids[slot] = PackedFeatureId::vertex(vertices[k]);
+            // A chord of a larger face keeps the id of the edge it starts on: stable from
+            // step to step, which is all the ids are used for.
+            out_feature.eids[slot] = PackedFeatureId::edge(edges[k]);
+        }
+        out_feature.fid = PackedFeatureId::face(best as u32);
+        out_feature.num_vertices = taken;
+    }
+
+    fn is_convex_polyhedron(&self) -> bool {
+        true
+    }
+}
+
+/// What a body collides with.
+#[derive(Debug, Clone)]
+pub enum Collider {
+    /// A convex polyhedron in the body's frame.
+    Convex(ConvexShape),
+    /// The half-space `{x : n·x ≤ 0}` in the body's frame (its boundary plane passes
+    /// through the body's origin, `n` is the outward normal).
+    HalfSpace(Unit<Vector3<f64>>),
+}
+
+impl Collider {
+    /// Whether the collider is bounded (a half-space is not).
+    pub fn is_bounded(&self) -> bool {
+        matches!(self, Collider::Convex(_))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn large_faces_keep_four_spread_vertices() {
+        // An octagonal prism: the top face has eight vertices.
+        let mut points = Vec::new();
+        for k in 0..8 {
+            let a = k as f64 * std::f64::consts::TAU / 8.0;
+            points.push(Point3::new(a.cos(), a.sin(), 0.5));
+            points.push(Point3::new(a.cos(), a.sin(), -0.5));
+        }
+        let shape = ConvexShape::from_points(&points).unwrap();
+        let mut feature = PolygonalFeature::default();
+        shape.local_support_feature(&Vector3::z_axis(), &mut feature);
+        assert_eq!(feature.num_vertices, 4);
+        // Spread: the four points span the face (their centroid is near its centre).
+        let centroid: Vector3<f64> = feature
+            .vertices
+            .iter()
+            .map(|p| p.coords)
+            .sum::<Vector3<f64>>()
+            / 4.0;
+        assert!(centroid.xy().norm() < 1e-9, "{centroid:?}");
+        assert!(feature.vertices.iter().all(|p| (p.z - 0.5).abs() < 1e-12));
+    }
+}

@@ -1,0 +1,374 @@
+//! NLGS in body-velocity form (seed 000 §2.1.3 without assembling W).
+//!
+//! The unknowns are the contact impulses r_a and the bodies' velocities V, kept equal
+//! to `V_free + M⁻¹ H r` at all times. Contact a between bodies i (normal away from it)
+//! and j, with local frame F = [n t s] and lever arms d = p − x:
+//!
+//! - its relative velocity is `u_a = Fᵀ(v_j − v_i) + A_jᵀ ω_j − A_iᵀ ω_i` (plus the gap
+//!   shift on the normal component), with `A = [d×n, d×t, d×s]`;
+//! - its diagonal Delassus block is `W_aa = (1/m_i + 1/m_j) I + A_iᵀ I_i⁻¹ A_i + A_jᵀ I_j⁻¹ A_j`;
+//! - after the exact local solve ([`LocalCoulomb::solve`]) on the local free velocity
+//!   `u_a − W_aa r_a`, the change Δr_a is applied to the two bodies in place:
+//!   `v_j += F Δr / m_j`, `ω_j += I_j⁻¹ A_j Δr`, and the opposite on i.
+//!
+//! A sweep costs O(contacts) and never forms an off-diagonal block.
+//!
+//! # Error measure
+//! The Siconos measure ([`super::residual`]) on the problem with each contact's impulse
+//! scaled to a velocity, `r̂_a = W_aa,nn r_a` (Coulomb's law is invariant under this
+//! scaling, so the measure is zero exactly at a solution, and both terms are in m/s):
+//! `√(Σ_a ‖r̂_a − Π_K(r̂_a − ũ_a)‖²) / max(‖q‖, ‖r̂‖, ‖u‖)`, with q the local free
+//! velocities (the relative velocities before any impulse).
+
+use std::time::{Duration, Instant};
+
+use nalgebra::{Matrix3, Vector3};
+
+use super::coulomb::{coulomb_residual_squared, ContactStatus, LocalCoulomb};
+use super::nlgs::{ErrorCheck, NlgsOptions, NlgsReport, Stopping};
+
+/// One contact of the body-velocity problem.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ContactRow {
+    /// The two bodies; the normal points from the first to the second.
+    pub bodies: [u32; 2],
+    /// The local frame `[n, t, s]` (world).
+    pub frame: [Vector3<f64>; 3],
+    /// Lever arms: contact point minus each body's mass centre (world).
+    pub arms: [Vector3<f64>; 2],
+    /// Added to the normal relative velocity (gap prediction, m/s).
+    pub shift: f64,
+    /// Friction coefficient.
+    pub mu: f64,
+}
+
+/// The bodies' side of the problem: inverse masses and world inverse inertias (zero for
+/// bodies that the contacts do not move).
+#[derive(Debug, Clone, Copy)]
+pub struct BodyInverses<'a> {
+    /// 1/m per body.
+    pub inverse_mass: &'a [f64],
+    /// I⁻¹ (world) per body.
+    pub inverse_inertia: &'a [Matrix3<f64>],
+}
+
+struct Prepared {
+    bodies: [usize; 2],
+    moves: [bool; 2],
+    frame: [Vector3<f64>; 3],
+    /// A_s columns (d × f_k).
+    arm_cross: [[Vector3<f64>; 3]; 2],
+    /// I⁻¹ A_s columns.
+    spin: [[Vector3<f64>; 3]; 2],
+    inverse_mass: [f64; 2],
+    shift: f64,
+    mu: f64,
+    w: [f64; 9],
+    local: LocalCoulomb,
+}
+
+impl Prepared {
+    fn new(row: &ContactRow, inv: &BodyInverses) -> Self {
+        let bodies = [row.bodies[0] as usize, row.bodies[1] as usize];
+        let mut arm_cross = [[Vector3::zeros(); 3]; 2];
+        let mut spin = [[Vector3::zeros(); 3]; 2];
+        let mut inverse_mass = [0.0; 2];
+        let mut moves = [false; 2];
+        let mut w = [0.0; 9];
+        for s in 0..2 {
+            let b = bodies[s];
+            inverse_mass[s] = inv.inverse_mass[b];
+            let ii = &inv.inverse_inertia[b];
+            moves[s] = inverse_mass[s] > 0.0;
+            for k in 0..3 {
+                arm_cross[s][k] = row.arms[s].cross(&row.frame[k]);
+                spin[s][k] = ii * arm_cross[s][k];
+            }
+            for k in 0..3 {
+                for l in 0..3 {
+                    let linear = if k == l { inverse_mass[s] } else { 0.0 };
+                    w[3 * k + l] += linear + arm_cross[s][k].dot(&spin[s][l]);
+                }
+            }
+        }
+        // W is symmetric up to rounding; make it exactly so.
+        for (k, l) in [(0, 1), (0, 2), (1, 2)] {
+            let m = 0.5 * (w[3 * k + l] + w[3 * l + k]);
+            w[3 * k + l] = m;
+            w[3 * l + k] = m;
+        }
+        Prepared {
+            bodies,
+            moves,
+            frame: row.frame,
+            arm_cross,
+            spin,
+            inverse_mass,
+            shift: row.shift,
+            mu: row.mu,
+            w,
+            local: LocalCoulomb::new(&w, row.mu),
+        }
+    }
+
+    /// The relative velocity (local, gap shift included).
+    #[inline]
+    fn velocity(&self, v: &[Vector3<f64>], omega: &[Vector3<f64>]) -> [f64; 3] {
+        let (i, j) = (self.bodies[0], self.bodies[1]);
+        let dv = v[j] - v[i];
+        let mut u = [0.0; 3];
+        for (k, uk) in u.iter_mut().enumerate() {
+            *uk = self.frame[k].dot(&dv) + self.arm_cross[1][k].dot(&omega[j])
+                - self.arm_cross[0][k].dot(&omega[i]);
+        }
+        u[0] += self.shift;
+        u
+    }
+
+    /// Applies the impulse change `d` to the two bodies.
+    #[inline]
+    fn apply(&self, d: [f64; 3], v: &mut [Vector3<f64>], omega: &mut [Vector3<f64>]) {
+        let world = self.frame[0] * d[0] + self.frame[1] * d[1] + self.frame[2] * d[2];
+        for s in 0..2 {
+            if !self.moves[s] {
+                continue;
+            }
+            let sign = if s == 0 { -1.0 } else { 1.0 };
+            let b = self.bodies[s];
+            v[b] += (sign * self.inverse_mass[s]) * world;
+            omega[b] +=
+                sign * (self.spin[s][0] * d[0] + self.spin[s][1] * d[1] + self.spin[s][2] * d[2]);
+        }
+    }
+}
+
+/// The diagonal Delassus block W_aa (row-major) of each contact.
+pub fn delassus_diagonal(rows: &[ContactRow], inverses: &BodyInverses) -> Vec<[f64; 9]> {
+    rows.iter().map(|r| Prepared::new(r, inverses).w).collect()
+}
+
+/// Solves the contact problem by NLGS in body-velocity form.
+///
+/// On entry `velocity` and `angular_velocity` (world) are the free velocities and
+/// `impulse` the warm start (zero for a cold start); on return the impulses and the
+/// velocities `V_free + M⁻¹ H r`. Under [`Stopping::Tolerance`] it stops when the error
+/// measure (module docs) is at most the tolerance or at the sweep cap; under
+/// [`Stopping::Sweeps`] after exactly that many sweeps. The last iterate is returned.
+pub fn solve(
+    rows: &[ContactRow],
+    inverses: &BodyInverses,
+    velocity: &mut [Vector3<f64>],
+    angular_velocity: &mut [Vector3<f64>],
+    impulse: &mut [[f64; 3]],
+    options: &NlgsOptions,
+) -> NlgsReport {
+    let start = Instant::now();
+    assert_eq!(rows.len(), impulse.len(), "one impulse per contact");
+    let prepared: Vec<Prepared> = rows.iter().map(|r| Prepared::new(r, inverses)).collect();
+    let free: Vec<[f64; 3]> = prepared
+        .iter()
+        .map(|c| c.velocity(velocity, angular_velocity))
+        .collect();
+    let free_norm = free.iter().flatten().map(|x| x * x).sum::<f64>().sqrt();
+    for (c, r) in prepared.iter().zip(impulse.iter()) {
+        if *r != [0.0; 3] {
+            c.apply(*r, velocity, angular_velocity);
+        }
+    }
+    let mut directions = vec![[0.0f64; 2]; rows.len()];
+    let mut report = NlgsReport {
+        iterations: 0,
+        error: 0.0,
+        converged: rows.is_empty(),
+        solve_time: Duration::ZERO,
+        error_evaluations: 0,
+        local_fallbacks: 0,
+        returned_sweep: 0,
+    };
+    if rows.is_empty() {
+        report.solve_time = start.elapsed();
+        return report;
+    }
+    let (tolerance, max_sweeps) = match options.stopping {
+        Stopping::Tolerance {
+            tolerance,
+            max_sweeps,
+        } => (tolerance, max_sweeps),
+        Stopping::Sweeps(n) => (f64::NEG_INFINITY, n),
+    };
+    let measure = |impulse: &[[f64; 3]], v: &[Vector3<f64>], w: &[Vector3<f64>]| {
+        let (mut sum, mut r_norm, mut u_norm) = (0.0, 0.0, 0.0);
+        for (c, r) in prepared.iter().zip(impulse) {
+            let u = c.velocity(v, w);
+            let scaled = [c.w[0] * r[0], c.w[0] * r[1], c.w[0] * r[2]];
+            sum += coulomb_residual_squared(scaled, u, c.mu);
+            r_norm += scaled.iter().map(|x| x * x).sum::<f64>();
+            u_norm += u.iter().map(|x| x * x).sum::<f64>();
+        }
+        let scale = free_norm.max(r_norm.sqrt()).max(u_norm.sqrt());
+        if scale > f64::EPSILON {
+            sum.sqrt() / scale
+        } else {
+            sum.sqrt()
+        }
+    };
+    report.error = f64::INFINITY;
+    while report.iterations < max_sweeps {
+        let (mut change, mut size) = (0.0, 0.0);
+        for (a, c) in prepared.iter().enumerate() {
+            let u = c.velocity(velocity, angular_velocity);
+            let old = impulse[a];
+            let w = &c.w;
+            let q = [
+                u[0] - (w[0] * old[0] + w[1] * old[1] + w[2] * old[2]),
+                u[1] - (w[3] * old[0] + w[4] * old[1] + w[5] * old[2]),
+                u[2] - (w[6] * old[0] + w[7] * old[1] + w[8] * old[2]),
+            ];
+            let (r, status) = c.local.solve(q, &mut directions[a]);
+            if status == ContactStatus::Fallback {
+                report.local_fallbacks += 1;
+            }
+            let d = [r[0] - old[0], r[1] - old[1], r[2] - old[2]];
+            if d != [0.0; 3] {
+                c.apply(d, velocity, angular_velocity);
+            }
+            let scale = w[0] * w[0];
+            change += scale * (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+            size += scale * (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]);
+            impulse[a] = r;
+        }
+        report.iterations += 1;
+        let full = match options.error_check {
+            _ if tolerance == f64::NEG_INFINITY => false,
+            ErrorCheck::EverySweep => true,
+            ErrorCheck::Light { every } => {
+                let light = if size > 0.0 {
+                    (change / size).sqrt()
+                } else {
+                    change.sqrt()
+                };
+                light <= tolerance || report.iterations % every.max(1) == 0
+            }
+        };
+        if full {
+            report.error = measure(impulse, velocity, angular_velocity);
+            report.error_evaluations += 1;
+            if report.error <= tolerance {
+                report.converged = true;
+                break;
+            }
+        }
+    }
+    if !report.converged {
+        report.error = measure(impulse, velocity, angular_velocity);
+        report.error_evaluations += 1;
+        report.converged = report.error <= tolerance || tolerance == f64::NEG_INFINITY;
+    }
+    report.returned_sweep = report.iterations;
+    report.solve_time = start.elapsed();
+    report
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::nscd::{DelassusBlocks, FrictionProblem};
+
+    /// A sphere-like body (unit mass, inertia 0.4) resting on a fixed body (index 0).
+    fn two_bodies() -> (Vec<f64>, Vec<Matrix3<f64>>) {
+        (
+            vec![0.0, 1.0],
+            vec![Matrix3::zeros(), Matrix3::identity() / 0.4],
+        )
+    }
+
+    #[test]
+    fn a_single_contact_matches_the_analytic_impulse() {
+        // A unit mass sliding at 1 m/s along t into a floor at 0.5 m/s, µ = 0.3, contact
+        // below its centre (arm −0.1 n). Without rotation the answer is r_n = 0.5 and
+        // slip; with the arm, the tangential impulse spins the body: solve exactly.
+        let (inverse_mass, inverse_inertia) = two_bodies();
+        let inverses = BodyInverses {
+            inverse_mass: &inverse_mass,
+            inverse_inertia: &inverse_inertia,
+        };
+        let frame = [Vector3::z(), Vector3::x(), Vector3::y()];
+        let row = ContactRow {
+            bodies: [0, 1],
+            frame,
+            arms: [Vector3::zeros(), Vector3::new(0.0, 0.0, -0.1)],
+            shift: 0.0,
+            mu: 0.3,
+        };
+        // Stick would need |r_t| = v_t / W_tt = 1 / (1 + 0.01/0.4) > 0.3 × 0.5: slip.
+        // Slip: u_n = 0 → r_n = 0.5 (W_nt = 0 here), r_t = −0.3 × 0.5.
+        let mut v = vec![Vector3::zeros(), Vector3::new(1.0, 0.0, -0.5)];
+        let mut w = vec![Vector3::zeros(); 2];
+        let mut r = vec![[0.0; 3]];
+        let report = solve(
+            &[row],
+            &inverses,
+            &mut v,
+            &mut w,
+            &mut r,
+            &NlgsOptions::default(),
+        );
+        assert!(report.converged && report.iterations <= 2, "{report:?}");
+        assert!((r[0][0] - 0.5).abs() < 1e-14, "{:?}", r[0]);
+        assert!((r[0][1] + 0.15).abs() < 1e-14 && r[0][2].abs() < 1e-14);
+        assert!(v[1].z.abs() < 1e-14 && (v[1].x - 0.85).abs() < 1e-14);
+        // ω = I⁻¹ (d × F r): d = −0.1 z, F r = −0.15 x + 0.5 z → d × (−0.15 x) = 0.015 y.
+        assert!(
+            (w[1] - Vector3::new(0.0, 0.015 / 0.4, 0.0)).norm() < 1e-14,
+            "{:?}",
+            w[1]
+        );
+        // The same problem in W form gives the same impulse.
+        let blocks = delassus_diagonal(&[row], &inverses);
+        let problem = FrictionProblem::new(
+            DelassusBlocks::from_blocks(1, [(0, 0, blocks[0])]),
+            vec![-0.5, 1.0, 0.0],
+            vec![0.3],
+        )
+        .unwrap();
+        let mut rw = vec![0.0; 3];
+        let mut uw = vec![0.0; 3];
+        crate::nscd::nlgs::solve(&problem, &mut rw, &mut uw, &NlgsOptions::default());
+        for k in 0..3 {
+            assert!((rw[k] - r[0][k]).abs() < 1e-14);
+        }
+    }
+
+    #[test]
+    fn delassus_block_of_an_offset_contact() {
+        let (inverse_mass, inverse_inertia) = two_bodies();
+        let inverses = BodyInverses {
+            inverse_mass: &inverse_mass,
+            inverse_inertia: &inverse_inertia,
+        };
+        let row = ContactRow {
+            bodies: [0, 1],
+            frame: [Vector3::z(), Vector3::x(), Vector3::y()],
+            arms: [Vector3::zeros(), Vector3::new(0.2, 0.0, -0.1)],
+            shift: 0.0,
+            mu: 0.5,
+        };
+        let w = delassus_diagonal(&[row], &inverses)[0];
+        // W = I/m + Aᵀ I⁻¹ A with A = [d×n, d×t, d×s]; d×z = (0, −0.2, 0),
+        // d×x = (0, −0.1, 0), d×y = (0.1, 0, 0.2).
+        let expect = [
+            1.0 + 0.04 / 0.4,
+            0.02 / 0.4,
+            0.0,
+            0.02 / 0.4,
+            1.0 + 0.01 / 0.4,
+            0.0,
+            0.0,
+            0.0,
+            1.0 + 0.05 / 0.4,
+        ];
+        for k in 0..9 {
+            assert!((w[k] - expect[k]).abs() < 1e-14, "{w:?}");
+        }
+    }
+}
