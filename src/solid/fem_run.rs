@@ -71,13 +71,15 @@ pub fn run_static(ctx: &RunContext) -> Result<()> {
     let loads = nodal_loads(ctx, &run.scene, &run.mesh, &run.model)?;
     let probes = probes(&ctx.scene_path, &run.scene.probe, &run.mesh)?;
     let cases = fem_cases(&run.scene);
+    let fixes = case_fixes_all(ctx, &run, &cases)?;
     let mut results = Vec::new();
-    for case in &cases {
+    for (case, fixed) in cases.iter().zip(&fixes) {
         let dir = case_dir(ctx, case);
         results.push(static_case(
             ctx,
             &mut run,
             case,
+            fixed,
             springs.as_ref(),
             &loads,
             &probes,
@@ -127,13 +129,15 @@ pub fn run_modes(ctx: &RunContext) -> Result<()> {
     let springs = springs(ctx, &run.scene, &run.mesh)?;
     let count = run.scene.fem.as_ref().map_or(4, |f| f.modes);
     let cases = fem_cases(&run.scene);
+    let fixes = case_fixes_all(ctx, &run, &cases)?;
     let mut results = Vec::new();
-    for case in &cases {
+    for (case, fixed) in cases.iter().zip(&fixes) {
         let dir = case_dir(ctx, case);
         results.push(modes_case(
             ctx,
             &mut run,
             case,
+            fixed,
             springs.as_ref(),
             count,
             &dir,
@@ -177,6 +181,8 @@ pub fn run_modes(ctx: &RunContext) -> Result<()> {
 /// What both commands read first: the scene, the mesh and the model.
 struct FemSetup {
     command: &'static str,
+    /// The first progress line, until printed.
+    announcement: std::cell::Cell<Option<String>>,
     scene: SolidScene,
     inputs: toml::Table,
     mesh: TetMesh,
@@ -200,7 +206,8 @@ impl FemSetup {
             .time("model", || FemModel::new(&mesh.nodes, &mesh.tets, material))
             .map_err(|e| Error::invalid(&mesh_path, e.to_string()))?;
         std::fs::create_dir_all(&ctx.out_dir).map_err(|e| Error::io(&ctx.out_dir, e))?;
-        eprintln!(
+        // Printed once every input is resolved, so that a bad scene gives one line.
+        let announcement = format!(
             "ballast-fem {command}: {} — {} nodes, {} tetra, {threads} threads",
             mesh_path.display(),
             mesh.nodes.len(),
@@ -208,12 +215,20 @@ impl FemSetup {
         );
         Ok(FemSetup {
             command,
+            announcement: std::cell::Cell::new(Some(announcement)),
             scene,
             inputs,
             mesh,
             model,
             timer,
         })
+    }
+
+    /// Prints the first progress line (once).
+    fn announce(&self) {
+        if let Some(line) = self.announcement.take() {
+            eprintln!("{line}");
+        }
     }
 
     fn summary(&self, ctx: &RunContext) -> Summary {
@@ -318,6 +333,14 @@ fn fixed_dofs(
     Ok(set)
 }
 
+/// The fixed DOFs of every case, resolved before any solve.
+fn case_fixes_all(ctx: &RunContext, run: &FemSetup, cases: &[CaseSpec]) -> Result<Vec<DofSet>> {
+    cases
+        .iter()
+        .map(|case| fixed_dofs(ctx, &run.scene, case, &run.mesh))
+        .collect()
+}
+
 /// The `[[fem.winkler]]` beds as grounded springs (none without any).
 fn springs(ctx: &RunContext, scene: &SolidScene, mesh: &TetMesh) -> Result<Option<Springs>> {
     let Some(fem) = scene.fem.as_ref().filter(|f| !f.winkler.is_empty()) else {
@@ -398,18 +421,19 @@ struct StaticRun {
     timings: PhaseTimes,
 }
 
+#[allow(clippy::too_many_arguments)]
 fn static_case(
     ctx: &RunContext,
     run: &mut FemSetup,
     case: &CaseSpec,
+    fixed: &DofSet,
     springs: Option<&Springs>,
     loads: &[Vector3<f64>],
     probes: &[Probe],
     dir: &Path,
 ) -> Result<StaticRun> {
     let label = case_label(case);
-    let fixed = fixed_dofs(ctx, &run.scene, case, &run.mesh)?;
-    let mut system = run.model.system(&fixed, springs)?;
+    let mut system = run.model.system(fixed, springs)?;
     if !system.is_anchored() {
         return Err(Error::invalid(
             &ctx.scene_path,
@@ -424,6 +448,7 @@ fn static_case(
             ),
         ));
     }
+    run.announce();
     let (free_dofs, matrix_nnz, factor_nnz) = (
         system.free_dof_count(),
         system.matrix_nnz(),
@@ -568,8 +593,9 @@ struct ShapeCharacter {
     centreline: [f64; 3],
     /// The rest: torsion and cross-section deformation.
     other: f64,
-    /// Sign changes of the slice-mean vertical (z) motion along the long axis.
-    vertical_sign_changes: usize,
+    /// Sign changes along the long axis of the slice-mean motion component that names
+    /// the kind (ū_z for vertical bending); none for torsion and other shapes.
+    sign_changes: Option<usize>,
     /// `vertical_bending`, `lateral_bending`, `axial` or `torsion_or_other` (with a
     /// vertical long axis: `bending_x`, `bending_y`, `axial`, `torsion_or_other`).
     kind: &'static str,
@@ -621,19 +647,6 @@ impl ShapeCharacter {
         }
         let centreline = centreline.map(|v| if total > 0.0 { v / total } else { 0.0 });
         let other = (1.0 - centreline.iter().sum::<f64>()).max(0.0);
-        let vertical: Vec<f64> = means
-            .iter()
-            .zip(&slice_mass)
-            .filter(|(_, &m)| m > 0.0)
-            .map(|(u, _)| u.z)
-            .collect();
-        let floor = SIGN_CHANGE_FLOOR * vertical.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-        let signs: Vec<bool> = vertical
-            .iter()
-            .filter(|v| v.abs() > floor)
-            .map(|&v| v > 0.0)
-            .collect();
-        let vertical_sign_changes = signs.windows(2).filter(|w| w[0] != w[1]).count();
         let names: [&'static str; 3] = if axis == 2 {
             ["bending_x", "bending_y", "axial"]
         } else {
@@ -643,17 +656,34 @@ impl ShapeCharacter {
             names
         };
         let mut kind = "torsion_or_other";
+        let mut dominant = None;
         let mut best = other;
         for (c, &fraction) in centreline.iter().enumerate() {
             if fraction > best {
                 best = fraction;
                 kind = names[c];
+                dominant = Some(c);
             }
         }
+        let sign_changes = dominant.map(|c| {
+            let values: Vec<f64> = means
+                .iter()
+                .zip(&slice_mass)
+                .filter(|(_, &m)| m > 0.0)
+                .map(|(u, _)| u[c])
+                .collect();
+            let floor = SIGN_CHANGE_FLOOR * values.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+            let signs: Vec<bool> = values
+                .iter()
+                .filter(|v| v.abs() > floor)
+                .map(|&v| v > 0.0)
+                .collect();
+            signs.windows(2).filter(|w| w[0] != w[1]).count()
+        });
         ShapeCharacter {
             centreline,
             other,
-            vertical_sign_changes,
+            sign_changes,
             kind,
         }
     }
@@ -663,7 +693,7 @@ impl ShapeCharacter {
             "kind": self.kind,
             "centreline_fraction_xyz": self.centreline,
             "torsion_or_other_fraction": self.other,
-            "vertical_sign_changes": self.vertical_sign_changes,
+            "centreline_sign_changes": self.sign_changes,
         })
     }
 }
@@ -677,7 +707,8 @@ struct ModesRun {
     factor_nnz: usize,
     /// Whether the case has fixes (otherwise a free body, or one on springs only).
     has_fixes: bool,
-    anchored: bool,
+    /// Whether the body rests on springs.
+    has_springs: bool,
     frequencies: Vec<f64>,
     residuals: Vec<f64>,
     shapes: Vec<ShapeCharacter>,
@@ -692,13 +723,13 @@ fn modes_case(
     ctx: &RunContext,
     run: &mut FemSetup,
     case: &CaseSpec,
+    fixed: &DofSet,
     springs: Option<&Springs>,
     count: usize,
     dir: &Path,
 ) -> Result<ModesRun> {
     let label = case_label(case);
-    let fixed = fixed_dofs(ctx, &run.scene, case, &run.mesh)?;
-    let mut system = run.model.system(&fixed, springs)?;
+    let mut system = run.model.system(fixed, springs)?;
     let anchored = system.is_anchored();
     let (free_dofs, matrix_nnz, factor_nnz) = (
         system.free_dof_count(),
@@ -711,6 +742,7 @@ fn modes_case(
             format!("key fem.modes: {count} modes asked for a model of {free_dofs} free DOFs"),
         ));
     }
+    run.announce();
     let options = ModeOptions::default();
     let mut wanted = if anchored { count } else { count + 6 };
     let mut timings = PhaseTimes::default();
@@ -811,7 +843,7 @@ fn modes_case(
         matrix_nnz,
         factor_nnz,
         has_fixes: !fixed.is_empty(),
-        anchored,
+        has_springs: springs.is_some(),
         frequencies,
         residuals: elastic.iter().map(|&i| modes.residuals[i]).collect(),
         shapes,
@@ -861,7 +893,7 @@ fn modes_figures(scene: &SolidScene, run: &ModesRun) -> Vec<(String, Value)> {
             .iter()
             .zip(&run.shapes)
             .filter(|(_, s)| {
-                s.kind == "vertical_bending" && (s.vertical_sign_changes < min_changes) == rigid
+                s.kind == "vertical_bending" && (s.sign_changes.unwrap_or(0) < min_changes) == rigid
             })
             .map(|(f, _)| *f)
             .collect()
@@ -870,7 +902,7 @@ fn modes_figures(scene: &SolidScene, run: &ModesRun) -> Vec<(String, Value)> {
         "vertical_bending_frequencies_hz".into(),
         json!(vertical(false)),
     ));
-    if !run.has_fixes && run.anchored {
+    if !run.has_fixes && run.has_springs {
         figures.push((
             "vertical_rigid_body_frequencies_hz".into(),
             json!(vertical(true)),
