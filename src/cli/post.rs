@@ -30,6 +30,16 @@ pub enum PostCommand {
         #[arg(long)]
         library: Option<PathBuf>,
     },
+    /// Speed/accuracy chart of the cantilever from ballast-qdem and ballast-fem results:
+    /// error against wall time and mesh size (SVG, PNG and a markdown table).
+    SpeedAccuracy {
+        /// Directories searched (recursively) for summary.json files.
+        #[arg(required = true)]
+        dirs: Vec<PathBuf>,
+        /// Output prefix: writes PREFIX.svg, PREFIX.png and PREFIX.md.
+        #[arg(long)]
+        out: PathBuf,
+    },
 }
 
 /// Runs `ballast-post`.
@@ -48,6 +58,26 @@ pub fn run_post(cli: PostCli) -> crate::Result<()> {
                 "{}",
                 crate::geometry::stone_family_report(&dir, library.as_deref())?
             );
+            Ok(())
+        }
+        PostCommand::SpeedAccuracy { dirs, out } => {
+            use crate::post::speed_accuracy::{collect, draw, table};
+            let points = collect(&dirs)?;
+            if points.is_empty() {
+                return Err(crate::Error::Message(format!(
+                    "speed-accuracy: no cantilever summary.json from ballast-qdem or ballast-fem under {}",
+                    dirs.iter().map(|d| d.display().to_string()).collect::<Vec<_>>().join(", ")
+                )));
+            }
+            if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+                std::fs::create_dir_all(dir).map_err(|e| crate::Error::io(dir, e))?;
+            }
+            let text = table(&points);
+            crate::output::write_atomic(out.with_extension("md"), text.as_bytes())?;
+            print!("{text}");
+            for file in draw(&points, &out)? {
+                println!("wrote {}", file.display());
+            }
             Ok(())
         }
     }

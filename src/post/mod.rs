@@ -2,3 +2,4 @@
 //! stone-family statistics; later spectra, compactness and charts).
 
 pub mod mesh_gallery;
+pub mod speed_accuracy;

@@ -92,6 +92,7 @@ pub fn run(ctx: &RunContext, force: bool) -> Result<()> {
     let mut summary = Summary::new(ctx, &inputs)
         .figure("nodes", mesh.nodes.len())
         .figure("tetra", mesh.tets.len())
+        .figure("volume_m3", mesh.total_volume())
         .figure("stable_dt_s", runs[0].stable.stable)
         .figure("dt_s", runs[0].dt)
         .figure("steps", runs[0].steps)
