@@ -3,8 +3,9 @@
 # COMPARE_FEM_LEVELS (presets of that scene; `base` = no preset): the same mesh, fixes
 # and per-node loads; static tip deflection, the 4 lowest frequencies and wall times
 # (ballast-fem static + modes, two processes, against one ccx run with a *STATIC and a
-# *FREQUENCY step). QDEM's figures are read from results/paper/ (`make paper`) when
-# those runs exist and printed as "not run" otherwise: compare-fem never runs QDEM.
+# *FREQUENCY step). QDEM's figures on the same mesh are read from results/paper/
+# (`make paper`), else results/ (`make qdem-quick`), when those runs exist, and printed
+# as "not run" otherwise: compare-fem never runs QDEM.
 # The table goes to results/compare_fem/table.md. Each level's runs are file targets,
 # so a second `make compare-fem` only reprints the table.
 #
@@ -47,6 +48,7 @@ $(foreach l,$(COMPARE_FEM_LEVELS),$(eval $(call COMPARE_FEM_LEVEL,$(l))))
 
 ## The sleeper of seed 004 §4 at other edge lengths (geo/sleeper_type3.geo, h = 0.05 m
 ## by default: meshes/sleeper_type3.msh).
+.PRECIOUS: meshes/sleeper_type3_h%.msh
 meshes/sleeper_type3_h%.msh: geo/sleeper_type3.geo | $(VENV_STAMP)
 	@mkdir -p $(@D)
 	$(GMSH) $< $(GMSH_FLAGS) -setnumber h $* -o $@
@@ -54,11 +56,11 @@ meshes/sleeper_type3_h%.msh: geo/sleeper_type3.geo | $(VENV_STAMP)
 SLEEPER_PRESETS := base winkler fine fine_winkler paper paper_winkler
 sleeper-modes: $(SLEEPER_PRESETS:%=results/sleeper_modes/%/summary.json)
 	@for p in $(SLEEPER_PRESETS); do \
-	  $(PY) -c 'import json,sys; f=json.load(open(sys.argv[1]))["figures"]; \
-	    print(f"{sys.argv[2]:>14}: {f[\"nodes\"]:>6} nodes, vertical bending", \
-	          " / ".join(f"{x:.1f}" for x in f["vertical_bending_frequencies_hz"][:3]), "Hz", \
-	          "(rigid: " + " / ".join(f"{x:.1f}" for x in f.get("vertical_rigid_body_frequencies_hz", [])) + " Hz)" \
-	          if f.get("vertical_rigid_body_frequencies_hz") else "")' \
+	  $(PY) -c 'import json, sys; f = json.load(open(sys.argv[1]))["figures"]; \
+	    v = f["vertical_bending_frequencies_hz"][:3]; r = f.get("vertical_rigid_body_frequencies_hz", []); \
+	    print("%14s: %6d nodes, vertical bending %s Hz%s" % (sys.argv[2], f["nodes"], \
+	      " / ".join("%.1f" % x for x in v), \
+	      ("  (rigid bounce and pitch " + " / ".join("%.1f" % x for x in r) + " Hz)") if r else ""))' \
 	    results/sleeper_modes/$$p/summary.json $$p; \
 	done
 results/sleeper_modes/%/summary.json: scenes/sleeper_modes.toml $(RELEASE)/ballast-fem meshes/sleeper_type3.msh meshes/sleeper_type3_h0.02.msh meshes/sleeper_type3_h0.01.msh
