@@ -65,8 +65,13 @@ gallery: results/mesh_gallery/summary.json
 results/mesh_gallery/summary.json: scenes/mesh_gallery.toml $(OBJECT_MESHES) $(STONE_MESHES) $(RELEASE)/ballast-post
 	$(RELEASE)/ballast-post meshes $< --out $(@D)
 
-## README picture, rendered from the gallery's VTK files.
-readme-figure: docs/img/meshes.png
+## README pictures: the meshes rendered from the gallery's VTK files, the QDEM quick
+## chart, and the speed/accuracy chart when `make speed-accuracy` has run.
+readme-figure: docs/img/meshes.png docs/img/qdem_quick.png
+	@if [ -f results/speed_accuracy/chart.png ]; then cp results/speed_accuracy/chart.png docs/img/speed_accuracy.png; fi
+docs/img/qdem_quick.png: $(QDEM_CHART)
+	@mkdir -p $(@D)
+	cp $< $@
 docs/img/meshes.png: tools/render_meshes.py results/mesh_gallery/summary.json | $(VENV_STAMP)
 	@mkdir -p $(@D)
 	$(PY) $< results/mesh_gallery $@
