@@ -764,7 +764,7 @@ fn modes_case(
         if elastic >= count || wanted >= free_dofs {
             break (modes, rigid);
         }
-        wanted = count + rigid.len() + 6;
+        wanted = (count + rigid.len() + 6).max(wanted + 6);
         if wanted > 4 * count + 48 {
             return Err(Error::invalid(
                 &ctx.scene_path,
