@@ -6,8 +6,9 @@
 # *FREQUENCY step). QDEM's figures on the same mesh are read from results/paper/
 # (`make paper`), else results/ (`make qdem-quick`), when those runs exist, and printed
 # as "not run" otherwise: compare-fem never runs QDEM.
-# The table goes to results/compare_fem/table.md. Each level's runs are file targets,
-# so a second `make compare-fem` only reprints the table.
+# The table goes to results/compare_fem/table.md. Each level's runs are file targets
+# (redone when ballast-fem, the peer or the mesh change); otherwise a second
+# `make compare-fem` only reprints the table.
 #
 # Also: `make sleeper-modes` (scenes/sleeper_modes.toml, free–free and on a Winkler bed,
 # three mesh sizes) and the sleeper meshes at other edge lengths.
