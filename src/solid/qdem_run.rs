@@ -70,12 +70,12 @@ pub fn run(ctx: &RunContext, force: bool) -> Result<()> {
     let mesh_path = SolidScene::resolve(&ctx.scene_path, &scene.mesh.file);
     let mesh = timer.time("read mesh", || read_msh(&mesh_path))?;
     std::fs::create_dir_all(&ctx.out_dir).map_err(|e| Error::io(&ctx.out_dir, e))?;
-    println!(
+    say(format_args!(
         "ballast-qdem: {} — {} nodes, {} tetra, {threads} threads",
         mesh_path.display(),
         mesh.nodes.len(),
         mesh.tets.len()
-    );
+    ));
     let mut runs = Vec::new();
     for case in scene.cases() {
         let dir = if case.name.is_empty() {
@@ -110,11 +110,17 @@ pub fn run(ctx: &RunContext, force: bool) -> Result<()> {
     }
     let summary = summary.wall_times(&timer);
     write_json(ctx.out_dir.join("summary.json"), &summary.to_json())?;
-    println!(
+    say(format_args!(
         "ballast-qdem: wrote {}",
         ctx.out_dir.join("summary.json").display()
-    );
+    ));
     Ok(())
+}
+
+/// A line of the run's report on stdout; a closed stdout (`| head`) is not an error.
+fn say(line: std::fmt::Arguments) {
+    use std::io::Write as _;
+    let _ = writeln!(std::io::stdout().lock(), "{line}");
 }
 
 fn case_json(run: &CaseRun) -> Value {
@@ -192,14 +198,14 @@ fn run_case(
     } else {
         format!("case {}: ", case.name)
     };
-    println!(
+    say(format_args!(
         "ballast-qdem: {label}stable time step {:.4e} s (ω_max {:.4e} rad/s, viscous ratio \
          ξ = {:.3e}); dt = {dt:.4e} s ({:.2} × stable)",
         stable.stable,
         stable.max_angular_frequency,
         stable.damping_ratio,
         dt / stable.stable
-    );
+    ));
     std::fs::create_dir_all(dir.join("frames")).map_err(|e| Error::io(dir, e))?;
 
     let damping_spec = spec.damping.as_ref();
@@ -248,6 +254,15 @@ fn run_case(
             output.sample(&state, &model)?;
             bar.set_position(step);
         }
+        // Without a terminal (logs, make) the bar is hidden: a line every 10 %.
+        if bar.is_hidden() && steps >= 10 && step % (steps / 10) == 0 && step < steps {
+            say(format_args!(
+                "ballast-qdem: {label}step {step}/{steps} ({:.0} %), t = {:.4e} s, {:.0} s elapsed",
+                100.0 * step as f64 / steps as f64,
+                state.time,
+                start.elapsed().as_secs_f64()
+            ));
+        }
         if step % frame_every == 0 || step == steps {
             let t = Instant::now();
             output.frame(&state, &solver, timer)?;
@@ -260,13 +275,13 @@ fn run_case(
     timer.add("stepping", std::time::Duration::from_secs_f64(stepping_s));
     timer.add("vtk frames", std::time::Duration::from_secs_f64(frames_s));
     let e = &state.energies;
-    println!(
+    say(format_args!(
         "ballast-qdem: {label}{steps} steps in {stepping_s:.1} s ({:.3e} tetra updates/s); \
          energy balance error {:.2e} J ({:.2e} relative)",
         steps as f64 * model.tet_count() as f64 / stepping_s,
         e.balance_error(),
         e.relative_balance_error()
-    );
+    ));
     Ok(CaseRun {
         name: case.name.clone(),
         dir: dir.to_path_buf(),
