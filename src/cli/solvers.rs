@@ -79,7 +79,7 @@ pub fn run_nscd(cli: NscdCli) -> crate::Result<()> {
             }),
             _,
         ) => super::fc3d::run(&file, tol, max_iter, json),
-        (None, Some(run)) => planned(&run, "ballast-nscd (NSCD solver)"),
+        (None, Some(run)) => crate::nscd::run::run(&run.context()?),
         (None, None) => Err(crate::Error::Message(
             "ballast-nscd: give a SCENE.toml or a sub-command (see --help)".into(),
         )),

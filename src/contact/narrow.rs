@@ -6,14 +6,25 @@
 //! features) is kept only when the clipping found nothing; points closer together than
 //! a millionth of the bodies' size are merged (coincident corners of aligned faces would
 //! otherwise give two rows of W that are equal).
+//!
+//! # The normal of two polyhedra
+//! parry's own polyhedron–polyhedron manifold takes the GJK direction as the normal;
+//! for faces in exact or near contact (a resting stack: distance ≈ 0) that direction is
+//! round-off, and EPA may fail outright, losing the contact. Here the separation along
+//! every face normal of both bodies is computed first (a partial separating-axis test,
+//! O(faces × vertices)): a face normal realises the separation of any face–face or
+//! face–vertex contact, and GJK/EPA's direction is taken only when it separates the
+//! bodies clearly better (an edge–edge contact). The support faces are then clipped by
+//! parry along that normal.
 
-use nalgebra::{Isometry3, Point3};
-use parry3d_f64::query::details::{contact_manifold_halfspace_pfm, contact_manifold_pfm_pfm};
-use parry3d_f64::query::ContactManifold;
-use parry3d_f64::shape::{HalfSpace, PackedFeatureId};
+use nalgebra::{Isometry3, Point3, Unit, Vector3};
+use parry3d_f64::query::details::contact_support_map_support_map_with_params;
+use parry3d_f64::query::gjk::{GJKResult, VoronoiSimplex};
+use parry3d_f64::query::{ContactManifold, TrackedContact};
+use parry3d_f64::shape::{PackedFeatureId, PolygonalFeature, PolygonalFeatureMap, SupportMap};
 
 use super::broad::{aabb_of, candidate_pairs, BroadShape};
-use super::shape::Collider;
+use super::shape::{Collider, ConvexShape};
 use super::{ContactKey, ContactPoint};
 
 /// Contact detection with an alert distance, and its scratch space.
@@ -77,6 +88,115 @@ pub fn detect(
     out
 }
 
+/// The contact manifold of two convex polyhedra (`pos12`: b's frame in a's), normal
+/// chosen as in the module docs.
+fn convex_convex_manifold(
+    pos12: &Isometry3<f64>,
+    a: &ConvexShape,
+    b: &ConvexShape,
+    alert: f64,
+    size: f64,
+    manifold: &mut ContactManifold<(), ()>,
+) {
+    let (face_separation, face_normal) = face_separation(pos12, a, b);
+    if face_separation > alert {
+        return;
+    }
+    let tolerance = 1e-9 * size;
+    let mut normal = face_normal;
+    if let GJKResult::ClosestPoints(p1, p2, dir) = contact_support_map_support_map_with_params(
+        pos12,
+        a,
+        b,
+        alert,
+        &mut VoronoiSimplex::new(),
+        Some(face_normal),
+    ) {
+        let distance = (p2 - p1).dot(&dir);
+        if distance > face_separation + tolerance {
+            normal = dir;
+        }
+    }
+    let normal2 = pos12.inverse_transform_unit_vector(&-normal);
+    let mut feature_a = PolygonalFeature::default();
+    let mut feature_b = PolygonalFeature::default();
+    a.local_support_feature(&normal, &mut feature_a);
+    b.local_support_feature(&normal2, &mut feature_b);
+    PolygonalFeature::contacts(
+        pos12,
+        &pos12.inverse(),
+        &normal,
+        &normal2,
+        &feature_a,
+        &feature_b,
+        manifold,
+        false,
+    );
+    manifold.local_n1 = *normal;
+    manifold.local_n2 = *normal2;
+}
+
+/// Every hull vertex of `b` within `alert` of the half-space's plane is a contact point
+/// (parry's half-space manifold keeps only the support face's first vertices, which may
+/// miss the deepest vertex of a tilted stone).
+fn halfspace_manifold(
+    pos12: &Isometry3<f64>,
+    normal: &Unit<Vector3<f64>>,
+    b: &ConvexShape,
+    alert: f64,
+    manifold: &mut ContactManifold<(), ()>,
+) {
+    let normal_b = pos12.inverse_transform_unit_vector(normal);
+    for (index, p) in b.points().iter().enumerate() {
+        let on_b = pos12 * p;
+        let distance = normal.dot(&on_b.coords);
+        if distance <= alert {
+            manifold.points.push(TrackedContact::new(
+                on_b - **normal * distance,
+                *p,
+                PackedFeatureId::face(0),
+                PackedFeatureId::vertex(index as u32),
+                distance,
+            ));
+        }
+    }
+    manifold.local_n1 = **normal;
+    manifold.local_n2 = -*normal_b;
+}
+
+/// The largest separation of `b` from a face plane of `a`, or of `a` from a face plane
+/// of `b`, and the corresponding normal from a to b (a's frame).
+fn face_separation(
+    pos12: &Isometry3<f64>,
+    a: &ConvexShape,
+    b: &ConvexShape,
+) -> (f64, Unit<Vector3<f64>>) {
+    let mut best = (f64::NEG_INFINITY, Vector3::z_axis());
+    let pa = a.polyhedron();
+    for face in pa.faces() {
+        let n = face.normal;
+        let on_face =
+            pa.points()[pa.vertices_adj_to_face()[face.first_vertex_or_edge as usize] as usize];
+        let support = pos12 * b.local_support_point(&pos12.inverse_transform_vector(&-*n));
+        let separation = n.dot(&(support - on_face));
+        if separation > best.0 {
+            best = (separation, n);
+        }
+    }
+    let pb = b.polyhedron();
+    for face in pb.faces() {
+        let n = pos12 * face.normal;
+        let on_face = pos12
+            * pb.points()[pb.vertices_adj_to_face()[face.first_vertex_or_edge as usize] as usize];
+        let support = a.local_support_point(&-*n);
+        let separation = n.dot(&(support - on_face));
+        if separation > best.0 {
+            best = (separation, -n);
+        }
+    }
+    best
+}
+
 type Side<'a> = (usize, &'a Collider, &'a Isometry3<f64>);
 
 /// Appends the contact points of one pair. A half-space is always the first body of
@@ -94,29 +214,12 @@ fn pair_contacts(first: Side, second: Side, alert: f64, out: &mut Vec<ContactPoi
     };
     let size = match a.1 {
         Collider::Convex(shape_a) => {
-            contact_manifold_pfm_pfm(
-                &pos12,
-                shape_a,
-                0.0,
-                None,
-                shape_b,
-                0.0,
-                None,
-                alert,
-                &mut manifold,
-            );
-            shape_a.bounding_radius().max(shape_b.bounding_radius())
+            let size = shape_a.bounding_radius().max(shape_b.bounding_radius());
+            convex_convex_manifold(&pos12, shape_a, shape_b, alert, size, &mut manifold);
+            size
         }
         Collider::HalfSpace(normal) => {
-            contact_manifold_halfspace_pfm(
-                &pos12,
-                &HalfSpace::new(*normal),
-                shape_b,
-                0.0,
-                alert,
-                &mut manifold,
-                false,
-            );
+            halfspace_manifold(&pos12, normal, shape_b, alert, &mut manifold);
             shape_b.bounding_radius()
         }
     };
@@ -158,8 +261,7 @@ fn pair_contacts(first: Side, second: Side, alert: f64, out: &mut Vec<ContactPoi
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::contact::ConvexShape;
-    use nalgebra::{Translation3, UnitQuaternion, Vector3};
+    use nalgebra::{Translation3, UnitQuaternion};
 
     fn cube(half: f64) -> Collider {
         let mut points = Vec::new();

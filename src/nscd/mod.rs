@@ -30,6 +30,8 @@ pub mod coulomb;
 pub mod nlgs;
 pub mod problem;
 pub mod residual;
+pub mod run;
+pub mod scene;
 pub mod step;
 
 pub use body::{Body, BodyShape, Motion, Prescribed};

@@ -2,7 +2,9 @@
 //!
 //! [`MoreauJean::step`] runs, each with its own timer:
 //! 1. **detect**: contact points at the start configuration, kept when their gap is
-//!    within the alert distance (gap prediction);
+//!    within the alert distance (gap prediction; at least twice the largest distance a
+//!    body point can travel in the step, so no contact closes unseen), ordered from the top down along
+//!    gravity (the NLGS order);
 //! 2. **build**: local frames, lever arms, friction per material pair, the gap shift of
 //!    each contact's normal velocity, warm-start impulses by contact identity, and the
 //!    free velocities `V_free = V_i + h M⁻¹ F_ext` (gyroscopic term explicit);
@@ -174,7 +176,27 @@ impl MoreauJean {
         // 1. Detect at the start configuration.
         let clock = Instant::now();
         self.points.clear();
+        // Gap prediction needs every contact that can close within the step: the alert
+        // distance is at least twice the largest distance a body point moves in h.
+        let fastest = bodies
+            .iter()
+            .filter(|b| !matches!(b.motion, Motion::Static))
+            .map(|b| b.velocity.norm() + b.angular_velocity.norm() * b.shape.bounding_radius())
+            .fold(0.0, f64::max);
+        self.detector.alert_distance = self
+            .params
+            .alert_distance
+            .max(2.0 * dt * (fastest + dt * gravity.norm()));
         detect_into(&mut self.detector, bodies, &mut self.points);
+        // NLGS order: from the top down along gravity, so that one sweep carries the
+        // weight of a column down to its base (bottom-up, it would take one sweep per
+        // layer); ties in the detection order.
+        if gravity != Vector3::zeros() {
+            let down = gravity.normalize();
+            let height = |c: &ContactPoint| -down.dot(&c.point.coords);
+            self.points
+                .sort_by(|a, b| height(b).total_cmp(&height(a)).then(a.key.cmp(&b.key)));
+        }
         phase_times[0] = clock.elapsed();
 
         // 2. Build: driven velocities at the end of the step, free velocities, rows.
@@ -268,8 +290,7 @@ impl MoreauJean {
                     external_work += body.mass * gravity.dot(&displacement);
                     let w_theta = (1.0 - theta) * body.angular_velocity + theta * w_new;
                     body.position += displacement;
-                    body.orientation =
-                        body.orientation * UnitQuaternion::from_scaled_axis(dt * w_theta);
+                    body.orientation *= UnitQuaternion::from_scaled_axis(dt * w_theta);
                     body.orientation.renormalize();
                     body.velocity = v_new;
                     body.angular_velocity = w_new;
