@@ -1,0 +1,149 @@
+//! The NSCD engine's acceptance scenes through `ballast-nscd`, quick presets: each run's
+//! `summary.json` figure against its analytic or physical bound, plus the output files
+//! (VTK grains and contacts, residuals CSV) read back, and one-line errors on bad input.
+//!
+//! `drop_box` needs the stone meshes of `make meshes` (meshes/stones/stone_*.msh).
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use serde_json::Value;
+
+const NSCD: &str = env!("CARGO_BIN_EXE_ballast-nscd");
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// Runs a scene's quick preset into `out` and returns its figures.
+fn run_quick(scene: &str, out: &Path) -> Value {
+    let output = Command::new(NSCD)
+        .arg(root().join("scenes").join(scene))
+        .args(["--preset", "quick", "--out"])
+        .arg(out)
+        .output()
+        .expect("ballast-nscd runs");
+    assert!(
+        output.status.success(),
+        "{scene}: {}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let text = std::fs::read_to_string(out.join("summary.json")).unwrap();
+    let summary: Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(summary["preset"], "quick");
+    summary["figures"].clone()
+}
+
+fn figure(figures: &Value, name: &str) -> f64 {
+    figures[name]
+        .as_f64()
+        .unwrap_or_else(|| panic!("figure {name} missing: {figures}"))
+}
+
+#[test]
+fn incline_block_sticks_below_and_slides_above_the_friction_angle() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = run_quick("incline.toml", dir.path());
+    // a = g (sin 20° − 0.2 cos 20°). The block slides on four corner contacts whose
+    // normal impulses sum to m g cos α h exactly once NLGS has converged (tolerance
+    // 1e-10), so the acceleration is exact up to that tolerance: 1e-6 leaves room for
+    // it and still is 10⁴ times tighter than the 1 % of the acceptance.
+    let expected = 9.81 * (20f64.to_radians().sin() - 0.2 * 20f64.to_radians().cos());
+    assert!((figure(&f, "slide_acceleration_expected_m_per_s2") - expected).abs() < 1e-12);
+    assert!(
+        figure(&f, "slide_acceleration_relative_error") < 1e-6,
+        "{f}"
+    );
+    // µ = 0.6 > tan 20°: the sticker stays put (to rounding: 1 nm over 0.2 s).
+    assert!(figure(&f, "sticker_displacement_m") < 1e-9, "{f}");
+    assert!(figure(&f, "max_interpenetration_m") < 1e-9, "{f}");
+    assert_eq!(figure(&f, "unconverged_steps"), 0.0);
+}
+
+#[test]
+fn cube_stack_stays_at_rest_for_ten_seconds() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = run_quick("cube_stack.toml", dir.path());
+    assert!((figure(&f, "steps") * figure(&f, "dt_s") - 10.0).abs() < 1e-9);
+    // Acceptance: every vertex within 1 µm of its start, interpenetration below 1 µm.
+    assert!(figure(&f, "max_drift_m") < 1e-6, "{f}");
+    assert!(figure(&f, "max_interpenetration_m") < 1e-6, "{f}");
+    assert_eq!(figure(&f, "unconverged_steps"), 0.0, "{f}");
+    // Read back the outputs: one residual row per step, VTK collections listed.
+    let csv = std::fs::read_to_string(dir.path().join("residuals.csv")).unwrap();
+    assert!(csv.starts_with("time_s,contacts,warm_started,nlgs_sweeps,nlgs_error,"));
+    assert_eq!(csv.lines().count() as f64, figure(&f, "steps") + 1.0);
+    // Warm starts: after the first step every contact is found again (persistent ids).
+    let second: Vec<f64> = csv
+        .lines()
+        .nth(2)
+        .unwrap()
+        .split(',')
+        .map(|x| x.parse().unwrap())
+        .collect();
+    assert_eq!(second[1], 40.0);
+    assert_eq!(second[2], 40.0);
+    let grains = std::fs::read_to_string(dir.path().join("grains.pvd")).unwrap();
+    assert!(grains.contains("frames/grains_0000.vtu"));
+    let vtu = std::fs::read_to_string(dir.path().join("frames/grains_0001.vtu")).unwrap();
+    assert!(vtu.contains("velocity_m_per_s") && vtu.contains("Name=\"id\""));
+    let contacts = std::fs::read_to_string(dir.path().join("frames/contacts_0001.vtu")).unwrap();
+    assert!(contacts.contains("normal_impulse_N_s") && contacts.contains("tangential_impulse_N_s"));
+}
+
+#[test]
+#[ignore = "open: stone–stone contacts still sink (final mean interpenetration 0.55 % of d50 \
+            on the quick preset, acceptance 0.1 %); see docs/nscd.md"]
+fn dropped_stones_lose_energy_and_settle_without_sinking() {
+    let stones = root().join("meshes/stones");
+    assert!(
+        stones.join("stone_001.msh").exists(),
+        "meshes/stones is missing: run `make meshes` first"
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let f = run_quick("drop_box.toml", dir.path());
+    assert_eq!(figure(&f, "dynamic_bodies"), 27.0);
+    // ΔKE − W_gravity per step: contacts only dissipate, so ≤ 0 up to the NLGS
+    // tolerance; allow 1e-6 of the total work of gravity.
+    assert!(figure(&f, "max_energy_rise_relative") <= 1e-6, "{f}");
+    assert!(
+        figure(&f, "final_mean_interpenetration_over_d50") < 1e-3,
+        "{f}"
+    );
+}
+
+#[test]
+fn bad_scenes_are_one_line_errors_naming_file_and_key() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("bad.toml");
+    let base = std::fs::read_to_string(root().join("scenes/incline.toml")).unwrap();
+    for (from, to, key) in [
+        ("theta = 0.5", "theta = 0.2", "time.theta"),
+        ("mu = 0.2", "mu = -1", "friction[0].mu"),
+        (
+            "material = \"steel\"",
+            "material = \"iron\"",
+            "plane[0].material",
+        ),
+        (
+            "slider = \"slider\"",
+            "slider = \"nobody\"",
+            "analysis.slider",
+        ),
+    ] {
+        std::fs::write(&scene, base.replacen(from, to, 1)).unwrap();
+        let output = Command::new(NSCD)
+            .arg(&scene)
+            .arg("--out")
+            .arg(dir.path().join("out"))
+            .output()
+            .unwrap();
+        assert_eq!(output.status.code(), Some(1));
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
+        assert!(
+            stderr.contains("bad.toml") && stderr.contains(key),
+            "{key}: {stderr}"
+        );
+    }
+}
