@@ -92,8 +92,6 @@ fn cube_stack_stays_at_rest_for_ten_seconds() {
 }
 
 #[test]
-#[ignore = "open: stone–stone contacts still sink (final mean interpenetration 0.55 % of d50 \
-            on the quick preset, acceptance 0.1 %); see docs/nscd.md"]
 fn dropped_stones_lose_energy_and_settle_without_sinking() {
     let stones = root().join("meshes/stones");
     assert!(

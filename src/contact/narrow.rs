@@ -98,25 +98,62 @@ fn convex_convex_manifold(
     size: f64,
     manifold: &mut ContactManifold<(), ()>,
 ) {
-    let (face_separation, face_normal) = face_separation(pos12, a, b);
-    if face_separation > alert {
+    let tolerance = 1e-9 * size;
+    let best = face_separation(pos12, a, b, tolerance);
+    if best.separation > alert {
         return;
     }
-    let tolerance = 1e-9 * size;
-    let mut normal = face_normal;
     if let GJKResult::ClosestPoints(p1, p2, dir) = contact_support_map_support_map_with_params(
         pos12,
         a,
         b,
         alert,
         &mut VoronoiSimplex::new(),
-        Some(face_normal),
+        Some(best.normal),
     ) {
         let distance = (p2 - p1).dot(&dir);
-        if distance > face_separation + tolerance {
-            normal = dir;
+        if distance > best.separation + tolerance {
+            edge_manifold(pos12, a, b, dir, manifold);
+            return;
         }
     }
+    // Face contact: clip the other body's incident face against the reference face.
+    if best.on_a {
+        for c in clip_against_reference(a, best.face, b, pos12, alert) {
+            manifold.points.push(TrackedContact::new(
+                c.on_reference,
+                pos12.inverse_transform_point(&c.on_incident),
+                PackedFeatureId::face(best.face as u32),
+                PackedFeatureId(c.incident_id),
+                c.gap,
+            ));
+        }
+        manifold.local_n1 = *best.normal;
+        manifold.local_n2 = pos12.inverse_transform_vector(&-*best.normal);
+    } else {
+        let pos21 = pos12.inverse();
+        for c in clip_against_reference(b, best.face, a, &pos21, alert) {
+            manifold.points.push(TrackedContact::new(
+                pos21.inverse_transform_point(&c.on_incident),
+                c.on_reference,
+                PackedFeatureId(c.incident_id),
+                PackedFeatureId::face(best.face as u32),
+                c.gap,
+            ));
+        }
+        manifold.local_n1 = *best.normal;
+        manifold.local_n2 = pos12.inverse_transform_vector(&-*best.normal);
+    }
+}
+
+/// An edge–edge contact: parry's clipping of the support features along `normal`.
+fn edge_manifold(
+    pos12: &Isometry3<f64>,
+    a: &ConvexShape,
+    b: &ConvexShape,
+    normal: Unit<Vector3<f64>>,
+    manifold: &mut ContactManifold<(), ()>,
+) {
     let normal2 = pos12.inverse_transform_unit_vector(&-normal);
     let mut feature_a = PolygonalFeature::default();
     let mut feature_b = PolygonalFeature::default();
@@ -134,6 +171,132 @@ fn convex_convex_manifold(
     );
     manifold.local_n1 = *normal;
     manifold.local_n2 = *normal2;
+}
+
+/// A clipped point of an incident face, in the reference body's frame.
+struct Clipped {
+    on_reference: Point3<f64>,
+    on_incident: Point3<f64>,
+    gap: f64,
+    incident_id: u32,
+}
+
+/// Sutherland–Hodgman: the incident face of `incident` (placed by `pose`, its frame in
+/// the reference's) — the face most opposed to the reference face's normal — clipped by
+/// the side planes of face `face` of `reference`; the points within `alert` of the
+/// reference plane. Ids: an incident vertex keeps its parry vertex id; a point made by
+/// side plane k on the edge that starts at point id i gets `0x8000_0000 | k << 20 | i`
+/// (stable while the same edges cross).
+fn clip_against_reference(
+    reference: &ConvexShape,
+    face: usize,
+    incident: &ConvexShape,
+    pose: &Isometry3<f64>,
+    alert: f64,
+) -> Vec<Clipped> {
+    let pr = reference.polyhedron();
+    let rf = &pr.faces()[face];
+    let normal = *rf.normal;
+    let loop_of = |poly: &parry3d_f64::shape::ConvexPolyhedron, f: usize| {
+        let face = &poly.faces()[f];
+        let first = face.first_vertex_or_edge as usize;
+        poly.vertices_adj_to_face()[first..first + face.num_vertices_or_edges as usize].to_vec()
+    };
+    let reference_loop: Vec<Point3<f64>> = loop_of(pr, face)
+        .iter()
+        .map(|&v| pr.points()[v as usize])
+        .collect();
+    let pi = incident.polyhedron();
+    let local_normal = pose.inverse_transform_vector(&normal);
+    let (incident_face, _) = pi
+        .faces()
+        .iter()
+        .enumerate()
+        .map(|(k, f)| (k, f.normal.dot(&local_normal)))
+        .fold(
+            (0, f64::INFINITY),
+            |best, x| if x.1 < best.1 { x } else { best },
+        );
+    let mut polygon: Vec<(Point3<f64>, u32)> = loop_of(pi, incident_face)
+        .iter()
+        .map(|&v| (pose * pi.points()[v as usize], PackedFeatureId::vertex(v).0))
+        .collect();
+    let centre = reference_loop
+        .iter()
+        .map(|p| p.coords)
+        .sum::<Vector3<f64>>()
+        / reference_loop.len() as f64;
+    let count = reference_loop.len();
+    for k in 0..count {
+        let (r0, r1) = (reference_loop[k], reference_loop[(k + 1) % count]);
+        let mut side = (r1 - r0).cross(&normal);
+        if side.dot(&(r0.coords - centre)) < 0.0 {
+            side = -side;
+        }
+        let distance = |p: &Point3<f64>| side.dot(&(p - r0));
+        let mut next = Vec::with_capacity(polygon.len() + 2);
+        for j in 0..polygon.len() {
+            let (p, id) = polygon[j];
+            let (q, _) = polygon[(j + 1) % polygon.len()];
+            let (dp, dq) = (distance(&p), distance(&q));
+            if dp <= 0.0 {
+                next.push((p, id));
+            }
+            if (dp < 0.0 && dq > 0.0) || (dp > 0.0 && dq < 0.0) {
+                let t = dp / (dp - dq);
+                let crossing = p + (q - p) * t;
+                next.push((crossing, 0x8000_0000 | ((k as u32) << 20) | (id & 0xF_FFFF)));
+            }
+        }
+        polygon = next;
+        if polygon.is_empty() {
+            break;
+        }
+    }
+    // Any other vertex of the incident body over the reference face and within the alert
+    // distance (a corner that is not on the incident face: a tilted stone's lowest point).
+    let sides: Vec<(Point3<f64>, Vector3<f64>)> = (0..count)
+        .map(|k| {
+            let (r0, r1) = (reference_loop[k], reference_loop[(k + 1) % count]);
+            let mut side = (r1 - r0).cross(&normal);
+            if side.dot(&(r0.coords - centre)) < 0.0 {
+                side = -side;
+            }
+            (r0, side)
+        })
+        .collect();
+    let r0 = reference_loop[0];
+    for (v, p) in pi.points().iter().enumerate() {
+        let id = PackedFeatureId::vertex(v as u32).0;
+        let q = pose * p;
+        if normal.dot(&(q - r0)) <= alert
+            && sides.iter().all(|(r, side)| side.dot(&(q - r)) <= 0.0)
+            && polygon.iter().all(|(_, other)| *other != id)
+        {
+            polygon.push((q, id));
+        }
+    }
+    polygon
+        .into_iter()
+        .filter_map(|(p, id)| {
+            let gap = normal.dot(&(p - r0));
+            (gap <= alert).then(|| Clipped {
+                on_reference: p - normal * gap,
+                on_incident: p,
+                gap,
+                incident_id: id,
+            })
+        })
+        .collect()
+}
+
+/// The best separating face of two polyhedra.
+struct FaceSeparation {
+    separation: f64,
+    /// From a to b, a's frame.
+    normal: Unit<Vector3<f64>>,
+    on_a: bool,
+    face: usize,
 }
 
 /// Every hull vertex of `b` within `alert` of the half-space's plane is a contact point
@@ -170,28 +333,46 @@ fn face_separation(
     pos12: &Isometry3<f64>,
     a: &ConvexShape,
     b: &ConvexShape,
-) -> (f64, Unit<Vector3<f64>>) {
-    let mut best = (f64::NEG_INFINITY, Vector3::z_axis());
+    tie: f64,
+) -> FaceSeparation {
+    let mut best = FaceSeparation {
+        separation: f64::NEG_INFINITY,
+        normal: Vector3::z_axis(),
+        on_a: true,
+        face: 0,
+    };
     let pa = a.polyhedron();
-    for face in pa.faces() {
+    for (k, face) in pa.faces().iter().enumerate() {
         let n = face.normal;
         let on_face =
             pa.points()[pa.vertices_adj_to_face()[face.first_vertex_or_edge as usize] as usize];
         let support = pos12 * b.local_support_point(&pos12.inverse_transform_vector(&-*n));
         let separation = n.dot(&(support - on_face));
-        if separation > best.0 {
-            best = (separation, n);
+        if separation > best.separation {
+            best = FaceSeparation {
+                separation,
+                normal: n,
+                on_a: true,
+                face: k,
+            };
         }
     }
     let pb = b.polyhedron();
-    for face in pb.faces() {
+    for (k, face) in pb.faces().iter().enumerate() {
         let n = pos12 * face.normal;
         let on_face = pos12
             * pb.points()[pb.vertices_adj_to_face()[face.first_vertex_or_edge as usize] as usize];
         let support = a.local_support_point(&-*n);
         let separation = n.dot(&(support - on_face));
-        if separation > best.0 {
-            best = (separation, -n);
+        // Ties (within `tie`) go to a's faces, so that two coplanar faces in contact
+        // keep one reference from step to step (and their contact ids).
+        if separation > best.separation + tie {
+            best = FaceSeparation {
+                separation,
+                normal: -n,
+                on_a: false,
+                face: k,
+            };
         }
     }
     best
