@@ -114,6 +114,17 @@ fn convex_convex_manifold(
         let distance = (p2 - p1).dot(&dir);
         if distance > best.separation + tolerance {
             edge_manifold(pos12, a, b, dir, manifold);
+            if manifold.points.iter().all(|c| c.dist > alert) {
+                // The clipped support features missed each other: keep GJK's pair of
+                // closest points, so the contact is not lost.
+                manifold.points.push(TrackedContact::new(
+                    p1,
+                    pos12.inverse_transform_point(&p2),
+                    PackedFeatureId::UNKNOWN,
+                    PackedFeatureId::UNKNOWN,
+                    distance,
+                ));
+            }
             return;
         }
     }
