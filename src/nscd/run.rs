@@ -283,6 +283,7 @@ struct RunStats {
     max_pen: f64,
     max_mean_pen: f64,
     max_rise: f64,
+    steps: u64,
     work_sum: f64,
     max_kinetic: f64,
     last_kinetic: f64,
@@ -306,7 +307,13 @@ impl RunStats {
         self.max_error = self.max_error.max(report.nlgs.error);
         self.max_pen = self.max_pen.max(report.max_interpenetration);
         self.max_mean_pen = self.max_mean_pen.max(report.mean_interpenetration);
-        self.max_rise = self.max_rise.max(report.energy_rise);
+        // The largest per-step ΔKE − W, negative when every step dissipated.
+        self.max_rise = if self.steps == 0 {
+            report.energy_rise
+        } else {
+            self.max_rise.max(report.energy_rise)
+        };
+        self.steps += 1;
         self.work_sum += report.external_work;
         self.max_kinetic = self.max_kinetic.max(report.kinetic_energy);
         self.last_kinetic = report.kinetic_energy;
