@@ -77,7 +77,7 @@ docs/img/meshes.png: tools/render_meshes.py results/mesh_gallery/summary.json | 
 	$(PY) $< results/mesh_gallery $@
 
 ## Tests: formatting, lints, then every test (they read what the real tools write).
-test: $(SYSTEM_DEPS_STAMP) $(VENV_STAMP) $(OBJECT_MESHES) $(QDEM_QUICK_MESHES)
+test: $(SYSTEM_DEPS_STAMP) $(VENV_STAMP) $(OBJECT_MESHES) $(QDEM_QUICK_MESHES) $(STONE_MESHES)
 	$(CARGO) fmt --check
 	$(CARGO) clippy --release --locked --all-targets -- -D warnings
 	$(CARGO) test --release --locked
