@@ -85,9 +85,11 @@ fn cantilever_static_quick_matches_the_paper_and_writes_readable_outputs() {
     let last = rows.last().unwrap();
     assert!(last[col("external_work_J")] > 0.0);
     assert!(last[col("balance_error_J")].abs() < 1e-4 * last[col("external_work_J")]);
-    // At rest the strain energy is half the work of a constant load (Clapeyron).
+    // At rest the strain energy is half the work of a constant load (Clapeyron); short
+    // of rest, strain / work = ½ δ/δ_static, and the quick run's δ is within 0.4 % of
+    // static (see above): 0.5 within 3e-3.
     let ratio = last[col("strain_J")] / last[col("external_work_J")];
-    assert!((ratio - 0.5).abs() < 1e-3, "{ratio}");
+    assert!((ratio - 0.5).abs() < 3e-3, "{ratio}");
 
     // The probe series ends on the summary's value.
     let (header, rows) = read_csv(&dir.path().join("probes.csv"));
