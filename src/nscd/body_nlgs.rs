@@ -25,7 +25,7 @@ use std::time::{Duration, Instant};
 use nalgebra::{Matrix3, Vector3};
 
 use super::coulomb::{coulomb_residual_squared, ContactStatus, LocalCoulomb};
-use super::nlgs::{ErrorCheck, NlgsOptions, NlgsReport, Stopping};
+use super::nlgs::{NlgsOptions, NlgsReport, Stopping};
 
 /// One contact of the body-velocity problem.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -238,18 +238,9 @@ pub fn solve(
             impulse[a] = r;
         }
         report.iterations += 1;
-        let full = match options.error_check {
-            _ if tolerance == f64::NEG_INFINITY => false,
-            ErrorCheck::EverySweep => true,
-            ErrorCheck::Light { every } => {
-                let light = if size > 0.0 {
-                    (change / size).sqrt()
-                } else {
-                    change.sqrt()
-                };
-                light <= tolerance || report.iterations % every.max(1) == 0
-            }
-        };
+        let full = options
+            .error_check
+            .due(report.iterations, change, size, tolerance);
         if full {
             report.error = measure(impulse, velocity, angular_velocity);
             report.error_evaluations += 1;

@@ -40,6 +40,27 @@ pub enum ErrorCheck {
     },
 }
 
+impl ErrorCheck {
+    /// Whether the full error measure is due after sweep `iterations`, given the
+    /// sweep's summed squared impulse change and squared impulse size. Never under a
+    /// fixed sweep count (`tolerance` = −∞). Shared by the W-form and the body-velocity
+    /// sweeps.
+    pub fn due(self, iterations: usize, change: f64, size: f64, tolerance: f64) -> bool {
+        match self {
+            _ if tolerance == f64::NEG_INFINITY => false,
+            ErrorCheck::EverySweep => true,
+            ErrorCheck::Light { every } => {
+                let light = if size > 0.0 {
+                    (change / size).sqrt()
+                } else {
+                    change.sqrt()
+                };
+                light <= tolerance || iterations % every.max(1) == 0
+            }
+        }
+    }
+}
+
 /// NLGS options.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct NlgsOptions {
@@ -152,18 +173,9 @@ pub fn solve(
             old.copy_from_slice(&r);
         }
         report.iterations += 1;
-        let measure = match options.error_check {
-            _ if tolerance == f64::NEG_INFINITY => false,
-            ErrorCheck::EverySweep => true,
-            ErrorCheck::Light { every } => {
-                let light = if size > 0.0 {
-                    (change / size).sqrt()
-                } else {
-                    change.sqrt()
-                };
-                light <= tolerance || report.iterations % every.max(1) == 0
-            }
-        };
+        let measure = options
+            .error_check
+            .due(report.iterations, change, size, tolerance);
         if measure {
             report.error = siconos_error(problem, impulse, velocity);
             report.error_evaluations += 1;
