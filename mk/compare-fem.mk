@@ -2,7 +2,7 @@
 # the cantilever of seed 004 §3.1 (scenes/cantilever_static.toml) at each level of
 # COMPARE_FEM_LEVELS (presets of that scene; `base` = no preset): the same mesh, fixes
 # and per-node loads; static tip deflection, the 4 lowest frequencies and wall times
-# (ballast-fem static + modes, two processes, against one ccx run with a *STATIC and a
+# (`ballast-fem both`: static + modes in one process, against one ccx run with a *STATIC and a
 # *FREQUENCY step). QDEM's figures on the same mesh are read from results/paper/
 # (`make paper`), else results/ (`make qdem-quick`), when those runs exist, and printed
 # as "not run" otherwise: compare-fem never runs QDEM.

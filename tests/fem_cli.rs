@@ -282,6 +282,38 @@ fn modes_quick_are_positive_increasing_and_match_the_library() {
 }
 
 #[test]
+fn both_gives_the_static_and_modes_results_in_one_process_on_one_factor() {
+    let (_s, statics) = run_ok("static", SCENE, &["--preset", "h005"]);
+    let (_m, modes) = run_ok("modes", SCENE, &["--preset", "h005"]);
+    let (dir, both) = run_ok("both", SCENE, &["--preset", "h005"]);
+    let figures = &both["figures"];
+    assert_eq!(figures["command"], "both");
+    // The same system, ordering and factor as the separate runs: identical figures.
+    assert_eq!(
+        figures["tip_deflection_m"],
+        statics["figures"]["tip_deflection_m"]
+    );
+    assert_eq!(
+        figures["reaction_total_N"],
+        statics["figures"]["reaction_total_N"]
+    );
+    assert_eq!(
+        figures["frequencies_hz"],
+        modes["figures"]["frequencies_hz"]
+    );
+    // The clamped cantilever's modes run with shift 0, i.e. on the factor of K that the
+    // static solve computed (FemSystem keeps it): one factorisation in the process.
+    assert_eq!(f(figures, "eigen_shift_rad2_per_s2"), 0.0);
+    for file in ["static.vtu", "probes.csv", "modes.pvd", "frequencies.csv"] {
+        assert!(dir.path().join(file).is_file(), "{file}");
+    }
+    for mode in 1..=4 {
+        let frame = dir.path().join(format!("modes/mode_{mode:02}.vtu"));
+        assert!(frame.is_file(), "{}", frame.display());
+    }
+}
+
+#[test]
 fn a_free_body_gives_six_rigid_modes_that_are_skipped() {
     let dir = tempfile::tempdir().unwrap();
     let scene = scene_file(dir.path(), "free.toml", "[fem]\nmodes = 3\n");

@@ -3,6 +3,7 @@
 //! "not implemented yet" rather than write anything that could pass for a result.
 
 use crate::scene::RunArgs;
+use crate::solid::fem_run::{self, Analyses};
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 
@@ -128,12 +129,16 @@ pub enum FemCommand {
     Static(RunArgs),
     /// Lowest vibration modes and frequencies.
     Modes(RunArgs),
+    /// Both in one process: one assembly and ordering, and on a held body the static
+    /// solve's Cholesky factor of K reused by the eigen-solver (shift 0).
+    Both(RunArgs),
 }
 
 /// Runs `ballast-fem`.
 pub fn run_fem(cli: FemCli) -> crate::Result<()> {
     match cli.command {
-        FemCommand::Static(run) => crate::solid::fem_run::run_static(&run.context()?),
-        FemCommand::Modes(run) => crate::solid::fem_run::run_modes(&run.context()?),
+        FemCommand::Static(run) => fem_run::run(&run.context()?, Analyses::Static),
+        FemCommand::Modes(run) => fem_run::run(&run.context()?, Analyses::Modes),
+        FemCommand::Both(run) => fem_run::run(&run.context()?, Analyses::Both),
     }
 }

@@ -1,4 +1,4 @@
-//! `ballast-fem static|modes SCENE.toml`: the reference linear-elastic FEM run on the
+//! `ballast-fem static|modes|both SCENE.toml`: the reference linear-elastic FEM run on the
 //! same scene file as `ballast-qdem` (same mesh, groups, loads and probes), through the
 //! numerical core in [`crate::fem`].
 //!
@@ -11,6 +11,11 @@
 //!   with the same fixes and springs. When they do not hold the body (free–free: no
 //!   fixes and no springs) the rigid-body modes (|f| < 10⁻³ × the highest frequency
 //!   computed, six for one free body) are computed too, skipped and reported as such.
+//!
+//! - `both`: the two in one process on one assembled system per case. The ordering and
+//!   symbolic factor are computed once and, on a held body, the eigen-solver runs with
+//!   shift 0 on the static solve's factor of K: at the paper's resolution that removes a
+//!   second factorisation, the costliest phase (see `make compare-fem`).
 //!
 //! A scene with `[[case]]`s is run once per case (one sub-directory each) only when a
 //! case adds fixes; viscosities do not enter linear elasticity, so cases that differ
@@ -46,12 +51,16 @@ use serde_json::{json, Map, Value};
 
 use super::scene::{CaseSpec, SolidScene};
 use super::setup::{case_fixes, group_nodes, probes, Probe};
-use crate::fem::{DofSet, FemModel, LinearElastic, ModeOptions, Modes, PhaseTimes, Springs};
+use crate::fem::{
+    DofSet, FemModel, FemSystem, LinearElastic, ModeOptions, Modes, PhaseTimes, Springs,
+};
 use crate::mesh::{read_msh, TetMesh};
-use crate::output::{write_json, write_vtu, CsvSeries, Grid, PvdWriter};
+use crate::output::vtu::vtu_bytes;
+use crate::output::{write_atomic, write_json, write_vtu, CsvSeries, Grid, PvdWriter};
 use crate::qdem::von_mises;
 use crate::scene::{PhaseTimer, RunContext, Summary};
 use crate::{Error, Result};
+use rayon::prelude::*;
 
 /// Modes below this fraction of the highest frequency computed count as rigid-body
 /// modes when the supports do not hold the body.
@@ -64,113 +73,139 @@ const SHAPE_SLICES: usize = 40;
 /// counting sign changes (the slices next to a node of the shape).
 const SIGN_CHANGE_FLOOR: f64 = 0.05;
 
-/// Runs `ballast-fem static`.
-pub fn run_static(ctx: &RunContext) -> Result<()> {
-    let mut run = FemSetup::new(ctx, "static")?;
-    let springs = springs(ctx, &run.scene, &run.mesh)?;
-    let loads = nodal_loads(ctx, &run.scene, &run.mesh, &run.model)?;
-    let probes = probes(&ctx.scene_path, &run.scene.probe, &run.mesh)?;
-    let cases = fem_cases(&run.scene);
-    let fixes = case_fixes_all(ctx, &run, &cases)?;
-    let mut results = Vec::new();
-    for (case, fixed) in cases.iter().zip(&fixes) {
-        let dir = case_dir(ctx, case);
-        results.push(static_case(
-            ctx,
-            &mut run,
-            case,
-            fixed,
-            springs.as_ref(),
-            &loads,
-            &probes,
-            &dir,
-        )?);
-    }
-    let total_load: Vector3<f64> = loads.iter().sum();
-    let first = &results[0];
-    let mut summary = run
-        .summary(ctx)
-        .figure("free_dofs", first.free_dofs)
-        .figure("fixed_dofs", first.fixed_dofs)
-        .figure("matrix_nnz", first.matrix_nnz)
-        .figure("factor_nnz", first.factor_nnz)
-        .figure("applied_load_N", vec3_json(&total_load))
-        .figure("reaction_total_N", vec3_json(&first.reaction_total))
-        .figure("max_displacement_m", first.max_displacement)
-        .figure("max_von_mises_Pa", first.max_von_mises)
-        .figure("solver_wall_time_s", first.timings.total_s());
-    for (name, value) in static_figures(&run.scene, first) {
-        summary = summary.figure(&name, value);
-    }
-    if cases.len() > 1 {
-        let cases: Vec<Value> = results
-            .iter()
-            .map(|r| {
-                let mut figures = Map::new();
-                figures.insert("name".into(), json!(r.name));
-                figures.insert("free_dofs".into(), json!(r.free_dofs));
-                for (name, value) in static_figures(&run.scene, r) {
-                    figures.insert(name, value);
-                }
-                Value::Object(figures)
-            })
-            .collect();
-        summary = summary.figure("cases", cases);
-    }
-    if let Some(note) = run.cases_note() {
-        summary = summary.figure("cases_note", note);
-    }
-    run.finish(ctx, summary)
+/// Which analyses one `ballast-fem` process runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Analyses {
+    /// `ballast-fem static`.
+    Static,
+    /// `ballast-fem modes`.
+    Modes,
+    /// `ballast-fem both`: the static solve, then the modes, on one assembled system per
+    /// case: assembly and ordering are done once, and on a held body (shift σ = 0) the
+    /// eigen-solver reuses the static solve's Cholesky factor of K.
+    Both,
 }
 
-/// Runs `ballast-fem modes`.
-pub fn run_modes(ctx: &RunContext) -> Result<()> {
-    let mut run = FemSetup::new(ctx, "modes")?;
+impl Analyses {
+    fn command(self) -> &'static str {
+        match self {
+            Analyses::Static => "static",
+            Analyses::Modes => "modes",
+            Analyses::Both => "both",
+        }
+    }
+
+    fn statics(self) -> bool {
+        self != Analyses::Modes
+    }
+
+    fn modes(self) -> bool {
+        self != Analyses::Static
+    }
+}
+
+/// Runs `ballast-fem static`, `modes` or `both`.
+pub fn run(ctx: &RunContext, analyses: Analyses) -> Result<()> {
+    let mut run = FemSetup::new(ctx, analyses.command())?;
     let springs = springs(ctx, &run.scene, &run.mesh)?;
+    let (loads, probes) = if analyses.statics() {
+        (
+            nodal_loads(ctx, &run.scene, &run.mesh, &run.model)?,
+            probes(&ctx.scene_path, &run.scene.probe, &run.mesh)?,
+        )
+    } else {
+        (Vec::new(), Vec::new())
+    };
     let count = run.scene.fem.as_ref().map_or(4, |f| f.modes);
     let cases = fem_cases(&run.scene);
     let fixes = case_fixes_all(ctx, &run, &cases)?;
-    let mut results = Vec::new();
+    let mut static_runs = Vec::new();
+    let mut modes_runs = Vec::new();
     for (case, fixed) in cases.iter().zip(&fixes) {
         let dir = case_dir(ctx, case);
-        results.push(modes_case(
-            ctx,
-            &mut run,
-            case,
-            fixed,
-            springs.as_ref(),
-            count,
-            &dir,
-        )?);
+        let mut system = run.model.system(fixed, springs.as_ref())?;
+        let mut timings = PhaseTimes::default();
+        let mut output = Duration::ZERO;
+        if analyses.statics() {
+            let r = static_case(ctx, &run, &mut system, case, fixed, &loads, &probes, &dir)?;
+            accumulate(&mut timings, &r.timings);
+            output += r.output;
+            static_runs.push(r);
+        }
+        if analyses.modes() {
+            let r = modes_case(ctx, &run, &mut system, case, fixed, count, &dir)?;
+            accumulate(&mut timings, &r.timings);
+            output += r.output;
+            modes_runs.push(r);
+        }
+        drop(system);
+        run.add_times(&timings);
+        run.timer.add("output", output);
     }
-    let first = &results[0];
+
+    let (free_dofs, fixed_dofs, matrix_nnz, factor_nnz, solver_s) =
+        match (static_runs.first(), modes_runs.first()) {
+            (Some(s), m) => (
+                s.free_dofs,
+                s.fixed_dofs,
+                s.matrix_nnz,
+                s.factor_nnz,
+                s.timings.total_s() + m.map_or(0.0, |m| m.timings.total_s()),
+            ),
+            (None, Some(m)) => (
+                m.free_dofs,
+                m.fixed_dofs,
+                m.matrix_nnz,
+                m.factor_nnz,
+                m.timings.total_s(),
+            ),
+            (None, None) => unreachable!("at least one case and one analysis"),
+        };
     let mut summary = run
         .summary(ctx)
-        .figure("free_dofs", first.free_dofs)
-        .figure("fixed_dofs", first.fixed_dofs)
-        .figure("matrix_nnz", first.matrix_nnz)
-        .figure("factor_nnz", first.factor_nnz)
-        .figure(
+        .figure("free_dofs", free_dofs)
+        .figure("fixed_dofs", fixed_dofs)
+        .figure("matrix_nnz", matrix_nnz)
+        .figure("factor_nnz", factor_nnz);
+    if let Some(first) = static_runs.first() {
+        let total_load: Vector3<f64> = loads.iter().sum();
+        summary = summary
+            .figure("applied_load_N", vec3_json(&total_load))
+            .figure("reaction_total_N", vec3_json(&first.reaction_total))
+            .figure("max_displacement_m", first.max_displacement)
+            .figure("max_von_mises_Pa", first.max_von_mises);
+        for (name, value) in static_figures(&run.scene, first) {
+            summary = summary.figure(&name, value);
+        }
+    }
+    if let Some(first) = modes_runs.first() {
+        summary = summary.figure(
             "winkler_total_stiffness_N_per_m",
             springs.as_ref().map_or(0.0, |s| s.total().trace()),
-        )
-        .figure("solver_wall_time_s", first.timings.total_s());
-    for (name, value) in modes_figures(&run.scene, first) {
-        summary = summary.figure(&name, value);
+        );
+        for (name, value) in modes_figures(&run.scene, first) {
+            summary = summary.figure(&name, value);
+        }
     }
+    summary = summary.figure("solver_wall_time_s", solver_s);
     if cases.len() > 1 {
-        let cases: Vec<Value> = results
+        let per_case: Vec<Value> = cases
             .iter()
-            .map(|r| {
+            .enumerate()
+            .map(|(i, case)| {
                 let mut figures = Map::new();
-                figures.insert("name".into(), json!(r.name));
-                for (name, value) in modes_figures(&run.scene, r) {
-                    figures.insert(name, value);
+                figures.insert("name".into(), json!(case.name));
+                if let Some(r) = static_runs.get(i) {
+                    figures.insert("free_dofs".into(), json!(r.free_dofs));
+                    figures.extend(static_figures(&run.scene, r));
+                }
+                if let Some(r) = modes_runs.get(i) {
+                    figures.extend(modes_figures(&run.scene, r));
                 }
                 Value::Object(figures)
             })
             .collect();
-        summary = summary.figure("cases", cases);
+        summary = summary.figure("cases", per_case);
     }
     if let Some(note) = run.cases_note() {
         summary = summary.figure("cases_note", note);
@@ -409,7 +444,6 @@ fn probe_displacement(probe: &Probe, displacement: &[Vector3<f64>]) -> Vector3<f
 
 /// One static solve.
 struct StaticRun {
-    name: String,
     free_dofs: usize,
     fixed_dofs: usize,
     matrix_nnz: usize,
@@ -419,28 +453,34 @@ struct StaticRun {
     max_displacement: f64,
     max_von_mises: f64,
     timings: PhaseTimes,
+    /// Time spent writing the outputs.
+    output: Duration,
 }
 
 #[allow(clippy::too_many_arguments)]
 fn static_case(
     ctx: &RunContext,
-    run: &mut FemSetup,
+    run: &FemSetup,
+    system: &mut FemSystem<'_>,
     case: &CaseSpec,
     fixed: &DofSet,
-    springs: Option<&Springs>,
     loads: &[Vector3<f64>],
     probes: &[Probe],
     dir: &Path,
 ) -> Result<StaticRun> {
     let label = case_label(case);
-    let mut system = run.model.system(fixed, springs)?;
+    let springs = run
+        .scene
+        .fem
+        .as_ref()
+        .is_some_and(|f| !f.winkler.is_empty());
     if !system.is_anchored() {
         return Err(Error::invalid(
             &ctx.scene_path,
             format!(
                 "key fix: {label}the [[fix]] groups{} leave the body free to move as a rigid \
                  body; a static solve needs supports that hold it",
-                if springs.is_some() {
+                if springs {
                     " and [[fem.winkler]] beds"
                 } else {
                     " (there is no [[fem.winkler]] bed)"
@@ -455,8 +495,6 @@ fn static_case(
         system.factor_nnz(),
     );
     let solution = system.static_solve(loads)?;
-    drop(system);
-    run.add_times(&solution.timings);
     let u = &solution.displacement;
 
     let start = Instant::now();
@@ -492,7 +530,7 @@ fn static_case(
             .collect();
         csv.push(&row)?;
     }
-    run.timer.add_since("output", start);
+    let output = start.elapsed();
 
     let max_displacement = u.iter().map(|v| v.norm()).fold(0.0, f64::max);
     let max_von_mises = mises.iter().copied().fold(0.0, f64::max);
@@ -512,7 +550,6 @@ fn static_case(
         );
     }
     Ok(StaticRun {
-        name: case.name.clone(),
         free_dofs,
         fixed_dofs: fixed.len(),
         matrix_nnz,
@@ -522,6 +559,7 @@ fn static_case(
         max_displacement,
         max_von_mises,
         timings: solution.timings,
+        output,
     })
 }
 
@@ -700,7 +738,6 @@ impl ShapeCharacter {
 
 /// One eigen-solve.
 struct ModesRun {
-    name: String,
     free_dofs: usize,
     fixed_dofs: usize,
     matrix_nnz: usize,
@@ -717,19 +754,25 @@ struct ModesRun {
     solves: usize,
     shift: f64,
     timings: PhaseTimes,
+    /// Time spent writing the outputs.
+    output: Duration,
 }
 
 fn modes_case(
     ctx: &RunContext,
-    run: &mut FemSetup,
+    run: &FemSetup,
+    system: &mut FemSystem<'_>,
     case: &CaseSpec,
     fixed: &DofSet,
-    springs: Option<&Springs>,
     count: usize,
     dir: &Path,
 ) -> Result<ModesRun> {
     let label = case_label(case);
-    let mut system = run.model.system(fixed, springs)?;
+    let has_springs = run
+        .scene
+        .fem
+        .as_ref()
+        .is_some_and(|f| !f.winkler.is_empty());
     let anchored = system.is_anchored();
     let (free_dofs, matrix_nnz, factor_nnz) = (
         system.free_dof_count(),
@@ -776,8 +819,6 @@ fn modes_case(
             ));
         }
     };
-    drop(system);
-    run.add_times(&timings);
     let elastic: Vec<usize> = (0..modes.frequencies_hz.len())
         .filter(|i| !rigid.contains(i))
         .take(count)
@@ -792,28 +833,40 @@ fn modes_case(
     let start = Instant::now();
     std::fs::create_dir_all(dir.join("modes")).map_err(|e| Error::io(dir, e))?;
     let grid = run.grid()?;
+    // The frames are encoded in parallel (zlib is most of a frame's cost), then written
+    // and listed in mode order.
+    let frames: Vec<(PathBuf, Vec<u8>)> = elastic
+        .par_iter()
+        .enumerate()
+        .map(|(number, &i)| {
+            let shape = &modes.shapes[i];
+            let scale = shape.iter().fold(0.0f64, |a, u| a.max(u.norm()));
+            let scale = if scale > 0.0 { 1.0 / scale } else { 1.0 };
+            let mut frame = grid.clone();
+            frame.add_point_field(
+                "displacement_m",
+                3,
+                shape
+                    .iter()
+                    .flat_map(|u| [u.x * scale, u.y * scale, u.z * scale])
+                    .collect::<Vec<f64>>(),
+            )?;
+            let file = PathBuf::from("modes").join(format!("mode_{:02}.vtu", number + 1));
+            Ok((file, vtu_bytes(&frame)?))
+        })
+        .collect::<Result<_>>()?;
     let mut pvd = PvdWriter::create(dir.join("modes.pvd"))?;
     let mut csv = CsvSeries::create(dir.join("frequencies.csv"), &["mode", "frequency_hz"])?;
-    let mut shapes = Vec::new();
-    for (number, &i) in elastic.iter().enumerate() {
-        let shape = &modes.shapes[i];
-        let scale = shape.iter().fold(0.0f64, |a, u| a.max(u.norm()));
-        let scale = if scale > 0.0 { 1.0 / scale } else { 1.0 };
-        let mut frame = grid.clone();
-        frame.add_point_field(
-            "displacement_m",
-            3,
-            shape
-                .iter()
-                .flat_map(|u| [u.x * scale, u.y * scale, u.z * scale])
-                .collect::<Vec<f64>>(),
-        )?;
-        let file = PathBuf::from("modes").join(format!("mode_{:02}.vtu", number + 1));
-        pvd.write_frame((number + 1) as f64, &file, &frame)?;
+    for (number, ((file, bytes), &i)) in frames.iter().zip(&elastic).enumerate() {
+        write_atomic(dir.join(file), bytes)?;
+        pvd.add_frame((number + 1) as f64, file)?;
         csv.push(&[(number + 1) as f64, modes.frequencies_hz[i]])?;
-        shapes.push(ShapeCharacter::new(&run.model, shape));
     }
-    run.timer.add_since("output", start);
+    let shapes: Vec<ShapeCharacter> = elastic
+        .iter()
+        .map(|&i| ShapeCharacter::new(&run.model, &modes.shapes[i]))
+        .collect();
+    let output = start.elapsed();
 
     let frequencies: Vec<f64> = elastic.iter().map(|&i| modes.frequencies_hz[i]).collect();
     let rigid_frequencies: Vec<f64> = rigid.iter().map(|&i| modes.frequencies_hz[i]).collect();
@@ -837,13 +890,12 @@ fn modes_case(
         modes.solves
     );
     Ok(ModesRun {
-        name: case.name.clone(),
         free_dofs,
         fixed_dofs: fixed.len(),
         matrix_nnz,
         factor_nnz,
         has_fixes: !fixed.is_empty(),
-        has_springs: springs.is_some(),
+        has_springs,
         frequencies,
         residuals: elastic.iter().map(|&i| modes.residuals[i]).collect(),
         shapes,
@@ -852,6 +904,7 @@ fn modes_case(
         solves: modes.solves,
         shift: modes.shift,
         timings,
+        output,
     })
 }
 

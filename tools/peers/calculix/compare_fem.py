@@ -1,13 +1,13 @@
 """ballast-fem against CalculiX (and QDEM, when its runs exist) on the cantilever of
 seed 004 §3.1 (scenes/cantilever_static.toml): `make compare-fem`.
 
-  compare_fem.py ballast LEVEL OUT.json     run ballast-fem static and modes at LEVEL
+  compare_fem.py ballast LEVEL OUT.json     run `ballast-fem both` (static + modes) at LEVEL
   compare_fem.py table LEVEL... --dir DIR   print the markdown table
 
 LEVEL is a preset of scenes/cantilever_static.toml (h005, h002, paper) or `base` (no
-preset, h = 0.03 m). `ballast` runs `ballast-fem static` then `ballast-fem modes`, each a
-fresh process, and records their wall times (process start to exit: reading the mesh
-and writing the VTK included) and the solver phases from summary.json. `table` reads
+preset, h = 0.03 m). `ballast` runs `ballast-fem both` (the static solve and 4 modes in
+one process, as CalculiX does them in one run) and records its wall time (process start
+to exit: reading the mesh and writing the VTK included) and the solver phases from summary.json. `table` reads
 DIR/LEVEL/ballast.json and DIR/LEVEL/calculix.json (ccx_peer.py's line), looks for QDEM
 runs of the same mesh under results/paper/cantilever_static-*/ and
 cantilever_vibration-*/ (`make paper`), else under results/ (`make qdem-quick`),
@@ -46,30 +46,29 @@ B, H, L, P = 0.25, 0.22, 2.4, 200.0
 def run_ballast(level, out_json):
     out = Path(out_json).parent
     preset = [] if level == "base" else ["--preset", level]
-    result = {"level": level}
-    for command in ("static", "modes"):
-        directory = out / f"ballast_{command}"
-        start = time.perf_counter()
-        run = subprocess.run(
-            [BINARY, command, SCENE, *preset, "--out", str(directory)],
-            capture_output=True,
-            text=True,
-        )
-        wall = time.perf_counter() - start
-        if run.returncode != 0:
-            sys.exit(f"compare_fem.py: ballast-fem {command} failed: {run.stderr.strip()}")
-        summary = json.loads((directory / "summary.json").read_text())
-        figures = summary["figures"]
-        result["nodes"] = figures["nodes"]
-        result["tetra"] = figures["tetra"]
-        result["threads"] = summary["threads"]
-        result[f"{command}_wall_s"] = wall
-        result[f"{command}_solver_s"] = figures["solver_wall_time_s"]
-        result[f"{command}_phases_s"] = summary["wall_time_s"]
-        if command == "static":
-            result["tip_deflection_m"] = figures["tip_deflection_m"]
-        else:
-            result["frequencies_hz"] = figures["frequencies_hz"]
+    directory = out / "ballast"
+    start = time.perf_counter()
+    run = subprocess.run(
+        [BINARY, "both", SCENE, *preset, "--out", str(directory)],
+        capture_output=True,
+        text=True,
+    )
+    wall = time.perf_counter() - start
+    if run.returncode != 0:
+        sys.exit(f"compare_fem.py: ballast-fem both failed: {run.stderr.strip()}")
+    summary = json.loads((directory / "summary.json").read_text())
+    figures = summary["figures"]
+    result = {
+        "level": level,
+        "nodes": figures["nodes"],
+        "tetra": figures["tetra"],
+        "threads": summary["threads"],
+        "wall_s": wall,
+        "solver_s": figures["solver_wall_time_s"],
+        "phases_s": summary["wall_time_s"],
+        "tip_deflection_m": figures["tip_deflection_m"],
+        "frequencies_hz": figures["frequencies_hz"],
+    }
     Path(out_json).write_text(json.dumps(result) + "\n")
     print(json.dumps(result))
 
@@ -189,8 +188,8 @@ def table(levels, directory):
         c_defl = ccx and ccx.get("tip_deflection_m")
         o_freq = ours and ours.get("frequencies_hz", [None])[0]
         c_freq = ccx and ccx.get("first_frequency_hz")
-        o_wall = ours and ours["static_wall_s"] + ours["modes_wall_s"]
-        o_solver = ours and ours["static_solver_s"] + ours["modes_solver_s"]
+        o_wall = ours and ours["wall_s"]
+        o_solver = ours and ours["solver_s"]
         c_wall = ccx and ccx.get("wall_time_s")
         rows.append(
             "| {level} ({mesh}) | {nodes} | {tetra} | {qd} | {od} | {cd} | {dd} | {qf} | {of} | "
@@ -239,9 +238,10 @@ def table(levels, directory):
     print(
         "\nδ: |u| at the tip-centre probe under 200 N spread equally over the tip face's "
         "nodes (same nodes and per-node force in both codes). f₁: lowest mode, clamped end. "
-        "Wall times: whole processes (ballast-fem: `static` then `modes`, two processes, "
-        "VTK output included; in brackets the solver phases only — assembly, ordering, "
-        "factorisation, solves, eigensolver; CalculiX: one ccx run with a *STATIC and a "
+        "Wall times: whole processes (ballast-fem: `ballast-fem both`, the static solve and "
+        "4 modes in one process sharing one Cholesky factor of K, VTK output included; in "
+        "brackets the solver phases only — assembly, ordering, factorisation, solves, "
+        "eigensolver; CalculiX: one ccx run with a *STATIC and a "
         "*FREQUENCY step of 4 modes; it writes the mode shapes to its .frd by default). Seed 004 quotes 92.32 µm and 27.01 Hz "
         "for Euler–Bernoulli. CalculiX integrates the C3D4 mass matrix at one point (ρV/16 "
         "in every entry), ballast-fem uses the exact consistent mass: its frequencies are "
