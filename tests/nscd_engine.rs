@@ -151,3 +151,94 @@ fn bad_scenes_are_one_line_errors_naming_file_and_key() {
         );
     }
 }
+
+#[test]
+fn driven_box_and_tine_push_blocks_at_their_speed_against_floor_friction() {
+    assert!(
+        root().join("meshes/tine.msh").exists(),
+        "meshes/tine.msh is missing: run `make meshes` first"
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let f = run_quick("push_box.toml", dir.path());
+    // Two blocks, a floor, the box and the tine's two convex pieces.
+    assert_eq!(figure(&f, "bodies"), 6.0);
+    assert_eq!(figure(&f, "dynamic_bodies"), 2.0);
+    // Once the tools move at a constant 0.2 m/s (after 0.15 s: 151 steps of the quick
+    // run), each block slides at the tool's velocity and the impulse the tool gives it
+    // per step is the floor's Coulomb friction µ m g h. The frictionless tool face
+    // leaves the floor the whole weight, so this is exact up to the NLGS tolerance
+    // (1e-10): 1e-6 is 10⁴ times tighter than the 1 % acceptance (measured 4e-13).
+    let expected = 0.5 * 2.7 * 9.81 * 1e-3;
+    assert!((figure(&f, "push_block_impulse_expected_N_s") - expected).abs() < 1e-12);
+    assert!(
+        (figure(&f, "push_small_block_impulse_expected_N_s") - 0.5 * 0.5832 * 9.81e-3).abs()
+            < 1e-12
+    );
+    for name in ["block", "small_block"] {
+        assert_eq!(figure(&f, &format!("push_{name}_samples")), 151.0, "{f}");
+    }
+    assert!(figure(&f, "push_max_impulse_relative_error") < 1e-6, "{f}");
+    assert!(figure(&f, "push_max_velocity_relative_error") < 1e-6, "{f}");
+    // Driven positions integrate the prescribed velocity table exactly (θ = 0.5,
+    // breakpoints on step boundaries): rounding only.
+    assert!(figure(&f, "driven_max_position_error_m") < 1e-12, "{f}");
+    assert!(figure(&f, "max_interpenetration_m") < 1e-9, "{f}");
+    assert_eq!(figure(&f, "unconverged_steps"), 0.0, "{f}");
+    // The tools are written to their own VTK collection, moving.
+    let pvd = std::fs::read_to_string(dir.path().join("driven.pvd")).unwrap();
+    assert!(pvd.contains("frames/driven_0003.vtu"));
+    let vtu = std::fs::read_to_string(dir.path().join("frames/driven_0003.vtu")).unwrap();
+    assert!(vtu.contains("velocity_m_per_s") && vtu.contains("RangeMax=\"0.2\""));
+
+    // Bad driven-body input: one line naming the file and the key, exit status 1.
+    let scene = dir.path().join("bad.toml");
+    let base = std::fs::read_to_string(root().join("scenes/push_box.toml"))
+        .unwrap()
+        .replace(
+            "../meshes/tine.msh",
+            &root().join("meshes/tine.msh").display().to_string(),
+        );
+    for (from, to, key) in [
+        (
+            "size = [\"0.05 m\", \"0.2 m\", \"0.1 m\"]",
+            "size = [\"0.05 m\", \"-0.2 m\", \"0.1 m\"]",
+            "key box[0].size[1]",
+        ),
+        (
+            "times = [\"0 s\", \"0.1 s\"]",
+            "times = [\"0.1 s\", \"0 s\"]",
+            "key box[0].velocity",
+        ),
+        (
+            "convex = [\"blade\", \"shank\"]",
+            "convex = [\"paddle\"]",
+            "key driven[0].convex",
+        ),
+        (
+            "tine.msh\"",
+            "no_tine.msh\"",
+            "key driven[0].mesh",
+        ),
+        (
+            "pushed = [\"block\", \"small_block\"]",
+            "pushed = [\"block\"]",
+            "analysis.pushed",
+        ),
+    ] {
+        assert!(base.contains(from), "{from}");
+        std::fs::write(&scene, base.replacen(from, to, 1)).unwrap();
+        let output = Command::new(NSCD)
+            .arg(&scene)
+            .arg("--out")
+            .arg(dir.path().join("out"))
+            .output()
+            .unwrap();
+        assert_eq!(output.status.code(), Some(1), "{key}");
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
+        assert!(
+            stderr.contains("bad.toml") && stderr.contains(key),
+            "{key}: {stderr}"
+        );
+    }
+}

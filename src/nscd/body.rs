@@ -13,6 +13,7 @@ use nalgebra::{
     Isometry3, Matrix3, Point3, SymmetricEigen, Translation3, Unit, UnitQuaternion, Vector3,
 };
 
+use super::motion::VelocityTable;
 use crate::contact::{Collider, ConvexShape};
 use crate::geometry::{convex_hull, mass_properties};
 use crate::{Error, Result};
@@ -143,7 +144,12 @@ impl BodyShape {
     }
 }
 
-/// A prescribed motion: a constant velocity plus a sinusoidal oscillation.
+/// A prescribed motion: a constant velocity, plus a sinusoidal oscillation, plus a
+/// piecewise-linear velocity table (each part optional).
+///
+/// The table is shared for the whole run through a `'static` reference (the scene
+/// leaks it once, [`Prescribed::with_table`]) so that `Prescribed` and [`Motion`] stay
+/// `Copy`: the step matches `body.motion` by value.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Prescribed {
     /// Constant translational velocity (m/s).
@@ -152,13 +158,42 @@ pub struct Prescribed {
     pub amplitude: Vector3<f64>,
     /// Frequency of the oscillation (Hz).
     pub frequency: f64,
+    /// A piecewise-linear velocity added to the rest (m/s).
+    pub table: Option<&'static VelocityTable>,
 }
 
 impl Prescribed {
-    /// The velocity at time `t`: `v + 2πf A cos(2πf t)`.
+    /// `self` with the velocity table `table` (leaked: it lives as long as the process,
+    /// which is the run).
+    pub fn with_table(mut self, table: VelocityTable) -> Self {
+        self.table = Some(Box::leak(Box::new(table)));
+        self
+    }
+
+    /// The velocity at time `t`: `v + 2πf A cos(2πf t) + table(t)`.
     pub fn velocity_at(&self, t: f64) -> Vector3<f64> {
         let omega = std::f64::consts::TAU * self.frequency;
-        self.velocity + self.amplitude * omega * (omega * t).cos()
+        let table = self.table.map_or(Vector3::zeros(), |v| v.velocity_at(t));
+        self.velocity + self.amplitude * omega * (omega * t).cos() + table
+    }
+
+    /// The exact displacement from `t0` to `t1`:
+    /// `v (t1 − t0) + A (sin 2πf t1 − sin 2πf t0) + ∫ table`.
+    pub fn displacement(&self, t0: f64, t1: f64) -> Vector3<f64> {
+        let omega = std::f64::consts::TAU * self.frequency;
+        let table = self
+            .table
+            .map_or(Vector3::zeros(), |v| v.displacement(t0, t1));
+        self.velocity * (t1 - t0)
+            + self.amplitude * ((omega * t1).sin() - (omega * t0).sin())
+            + table
+    }
+
+    /// Whether it never moves (no velocity, no oscillation, no table).
+    pub fn is_rest(&self) -> bool {
+        self.velocity == Vector3::zeros()
+            && (self.amplitude == Vector3::zeros() || self.frequency == 0.0)
+            && self.table.is_none()
     }
 }
 

@@ -27,6 +27,7 @@
 pub mod body;
 pub mod body_nlgs;
 pub mod coulomb;
+pub mod motion;
 pub mod nlgs;
 pub mod problem;
 pub mod residual;

@@ -2,9 +2,11 @@
 //! the grains and of the contact network, a residuals CSV and `summary.json`.
 //!
 //! Output directory:
-//! - `grains.pvd` + `frames/grains_NNNN.vtu`: every polyhedral body as a triangulated
-//!   surface, point field `velocity_m_per_s` (rigid velocity at each vertex), cell field
-//!   `id` (body index);
+//! - `grains.pvd` + `frames/grains_NNNN.vtu`: every dynamic polyhedral body as a
+//!   triangulated surface, point field `velocity_m_per_s` (rigid velocity at each
+//!   vertex), cell field `id` (body index);
+//! - `driven.pvd` + `frames/driven_NNNN.vtu` (when the scene has boxes or driven
+//!   meshes): the driven and fixed polyhedral bodies (each convex piece), same fields;
 //! - `contacts.pvd` + `frames/contacts_NNNN.vtu`: one line per contact point, from the
 //!   first body's mass centre (the contact point for a plane) to the second's, with cell
 //!   fields `normal_impulse_N_s`, `tangential_impulse_N_s`, `normal`, `gap_m`;
@@ -20,7 +22,7 @@ use nalgebra::{Point3, Vector3};
 
 use super::body::{Body, Motion};
 use super::nlgs::{ErrorCheck, NlgsOptions, Stopping};
-use super::scene::{Model, NscdScene};
+use super::scene::{DrivenBody, Model, NscdScene};
 use super::step::{MoreauJean, SolvedContact, StepParams};
 use crate::contact::Collider;
 use crate::output::{write_json, CsvSeries, Grid, PvdWriter};
@@ -36,6 +38,7 @@ pub fn run(ctx: &RunContext) -> Result<()> {
         mut bodies,
         friction,
         stone_diameters,
+        driven,
     } = timer.time("build bodies", || scene.build(&ctx.scene_path))?;
     std::fs::create_dir_all(ctx.out_dir.join("frames")).map_err(|e| Error::io(&ctx.out_dir, e))?;
     let dt = scene.time.dt.si();
@@ -66,7 +69,10 @@ pub fn run(ctx: &RunContext) -> Result<()> {
         params.theta
     );
 
-    let mut outputs = Outputs::create(&ctx.out_dir)?;
+    let has_driven_vtk = bodies
+        .iter()
+        .any(|b| !b.is_dynamic() && b.shape.collider.is_bounded());
+    let mut outputs = Outputs::create(&ctx.out_dir, has_driven_vtk)?;
     outputs.frame(0.0, &bodies, &[])?;
     let frame_every = if scene.output.frames == 0 {
         u64::MAX
@@ -92,6 +98,12 @@ pub fn run(ctx: &RunContext) -> Result<()> {
         .map_or(0.0, |t| t.si());
     let mut slider_samples: Vec<(f64, f64)> = Vec::new();
     let mut slider_mu = None;
+    let mut pushes = if analysis_kind == "push" {
+        PushCheck::new(&scene, &driven, &bodies)
+    } else {
+        Vec::new()
+    };
+    let driven_start: Vec<Vector3<f64>> = bodies.iter().map(|b| b.position).collect();
 
     let mut stats = RunStats::default();
     let bar = ProgressBar::with_draw_target(Some(steps), ProgressDrawTarget::stderr_with_hz(4));
@@ -131,6 +143,15 @@ pub fn run(ctx: &RunContext) -> Result<()> {
                     (a == s || b == s).then(|| friction.get(bodies[a].material, bodies[b].material))
                 });
             }
+        }
+        for push in &mut pushes {
+            push.record(
+                time,
+                time >= fit_after,
+                &bodies,
+                pipeline.contacts(),
+                &friction,
+            );
         }
         if step % frame_every == 0 || step == steps {
             let clock = Instant::now();
@@ -228,6 +249,44 @@ pub fn run(ctx: &RunContext) -> Result<()> {
                 .figure("sticker_max_speed_m_per_s", stats.speed_of(k));
         }
     }
+    // Driven bodies: the position reached against the exact integral of the prescribed
+    // velocity (exact for θ = 0.5 and a piecewise-linear velocity with its breakpoints
+    // on step boundaries; O(h²) per unit time otherwise).
+    let mut driven_error: Option<f64> = None;
+    for (k, body) in bodies.iter().enumerate() {
+        if let Motion::Driven(prescribed) = body.motion {
+            let expected = driven_start[k] + prescribed.displacement(0.0, time);
+            let error = (body.position - expected).norm();
+            driven_error = Some(driven_error.unwrap_or(0.0).max(error));
+        }
+    }
+    if let Some(error) = driven_error {
+        summary = summary.figure("driven_max_position_error_m", error);
+    }
+    if !pushes.is_empty() {
+        let mut worst_impulse: f64 = 0.0;
+        let mut worst_velocity: f64 = 0.0;
+        for push in &pushes {
+            let (impulse, velocity) = push.errors();
+            worst_impulse = worst_impulse.max(impulse);
+            worst_velocity = worst_velocity.max(velocity);
+            let tag = format!("push_{}", push.pushed_name);
+            summary = summary
+                .figure(&format!("{tag}_mu"), push.mu.unwrap_or(f64::NAN))
+                .figure(&format!("{tag}_mass_kg"), push.mass)
+                .figure(
+                    &format!("{tag}_impulse_expected_N_s"),
+                    push.expected().unwrap_or(f64::NAN),
+                )
+                .figure(&format!("{tag}_mean_impulse_N_s"), push.mean_impulse())
+                .figure(&format!("{tag}_impulse_relative_error"), impulse)
+                .figure(&format!("{tag}_velocity_relative_error"), velocity)
+                .figure(&format!("{tag}_samples"), push.samples);
+        }
+        summary = summary
+            .figure("push_max_impulse_relative_error", worst_impulse)
+            .figure("push_max_velocity_relative_error", worst_velocity);
+    }
     let summary = summary.wall_times(&timer);
     write_json(ctx.out_dir.join("summary.json"), &summary.to_json())?;
     println!(
@@ -268,6 +327,126 @@ fn slope(samples: &[(f64, f64)]) -> f64 {
         stt += (t - mt) * (t - mt);
     }
     stv / stt
+}
+
+/// One pusher–block pair of a `push` analysis: the impulse the pusher's pieces give the
+/// block per step (along the pusher's velocity) against Coulomb's µ m g h of the floor,
+/// and the block's velocity against the pusher's.
+#[derive(Debug)]
+struct PushCheck {
+    pieces: Vec<usize>,
+    pushed: usize,
+    pushed_name: String,
+    mass: f64,
+    gravity: f64,
+    dt: f64,
+    /// µ between the block and the fixed body it slides on (found from the contacts).
+    mu: Option<f64>,
+    samples: usize,
+    impulse_sum: f64,
+    impulses: Vec<f64>,
+    max_velocity_error: f64,
+}
+
+impl PushCheck {
+    fn new(scene: &NscdScene, driven: &[DrivenBody], bodies: &[Body]) -> Vec<PushCheck> {
+        let Some(a) = &scene.analysis else {
+            return Vec::new();
+        };
+        let pushers = a.pushers.as_deref().unwrap_or(&[]);
+        let pushed = a.pushed.as_deref().unwrap_or(&[]);
+        pushers
+            .iter()
+            .zip(pushed)
+            .filter_map(|(p, q)| {
+                let pieces = driven.iter().find(|d| &d.name == p)?.pieces.clone();
+                let pushed = bodies.iter().position(|b| &b.name == q)?;
+                Some(PushCheck {
+                    pieces,
+                    pushed,
+                    pushed_name: q.clone(),
+                    mass: bodies[pushed].mass,
+                    gravity: scene.gravity.vector().norm(),
+                    dt: scene.time.dt.si(),
+                    mu: None,
+                    samples: 0,
+                    impulse_sum: 0.0,
+                    impulses: Vec::new(),
+                    max_velocity_error: 0.0,
+                })
+            })
+            .collect()
+    }
+
+    fn record(
+        &mut self,
+        _time: f64,
+        measure: bool,
+        bodies: &[Body],
+        contacts: &[SolvedContact],
+        friction: &super::step::FrictionTable,
+    ) {
+        let mut impulse = Vector3::zeros();
+        for c in contacts {
+            let (a, b) = (c.contact.key.body_a as usize, c.contact.key.body_b as usize);
+            // The impulse acts on the second body along +world, on the first along −world.
+            let world =
+                c.frame[0] * c.impulse[0] + c.frame[1] * c.impulse[1] + c.frame[2] * c.impulse[2];
+            if b == self.pushed && self.pieces.contains(&a) {
+                impulse += world;
+            } else if a == self.pushed && self.pieces.contains(&b) {
+                impulse -= world;
+            }
+            if self.mu.is_none() && (a == self.pushed || b == self.pushed) {
+                let other = if a == self.pushed { b } else { a };
+                if matches!(bodies[other].motion, Motion::Static) {
+                    self.mu = Some(friction.get(bodies[a].material, bodies[b].material));
+                }
+            }
+        }
+        if !measure {
+            return;
+        }
+        let v_pusher = bodies[self.pieces[0]].velocity;
+        let speed = v_pusher.norm();
+        if speed == 0.0 {
+            return;
+        }
+        let along = impulse.dot(&v_pusher) / speed;
+        self.samples += 1;
+        self.impulse_sum += along;
+        self.impulses.push(along);
+        let error = (bodies[self.pushed].velocity - v_pusher).norm() / speed;
+        self.max_velocity_error = self.max_velocity_error.max(error);
+    }
+
+    /// µ m g h.
+    fn expected(&self) -> Option<f64> {
+        self.mu.map(|mu| mu * self.mass * self.gravity * self.dt)
+    }
+
+    fn mean_impulse(&self) -> f64 {
+        if self.samples == 0 {
+            f64::NAN
+        } else {
+            self.impulse_sum / self.samples as f64
+        }
+    }
+
+    /// Largest relative error of the impulse per step and of the block's velocity over
+    /// the measured steps (NaN without samples).
+    fn errors(&self) -> (f64, f64) {
+        match (self.expected(), self.samples) {
+            (Some(expected), n) if n > 0 => (
+                self.impulses
+                    .iter()
+                    .map(|p| (p - expected).abs() / expected.abs())
+                    .fold(0.0, f64::max),
+                self.max_velocity_error,
+            ),
+            _ => (f64::NAN, f64::NAN),
+        }
+    }
 }
 
 /// Running figures of a run.
@@ -340,15 +519,21 @@ impl RunStats {
 /// The run's files.
 struct Outputs {
     grains: PvdWriter,
+    driven: Option<PvdWriter>,
     contacts: PvdWriter,
     residuals: CsvSeries,
     frames: usize,
 }
 
 impl Outputs {
-    fn create(dir: &Path) -> Result<Self> {
+    fn create(dir: &Path, driven: bool) -> Result<Self> {
         Ok(Outputs {
             grains: PvdWriter::create(dir.join("grains.pvd"))?,
+            driven: if driven {
+                Some(PvdWriter::create(dir.join("driven.pvd"))?)
+            } else {
+                None
+            },
             contacts: PvdWriter::create(dir.join("contacts.pvd"))?,
             residuals: CsvSeries::create(
                 dir.join("residuals.csv"),
@@ -372,7 +557,11 @@ impl Outputs {
     fn frame(&mut self, time: f64, bodies: &[Body], contacts: &[SolvedContact]) -> Result<()> {
         let name = format!("frames/grains_{:04}.vtu", self.frames);
         self.grains
-            .write_frame(time, &name, &grains_grid(bodies)?)?;
+            .write_frame(time, &name, &grains_grid(bodies, true)?)?;
+        if let Some(driven) = &mut self.driven {
+            let name = format!("frames/driven_{:04}.vtu", self.frames);
+            driven.write_frame(time, &name, &grains_grid(bodies, false)?)?;
+        }
         let name = format!("frames/contacts_{:04}.vtu", self.frames);
         self.contacts
             .write_frame(time, &name, &contacts_grid(bodies, contacts)?)?;
@@ -381,14 +570,15 @@ impl Outputs {
     }
 }
 
-/// Polyhedral bodies as triangulated surfaces.
-pub fn grains_grid(bodies: &[Body]) -> Result<Grid> {
+/// Polyhedral bodies as triangulated surfaces: the dynamic ones (`dynamic`) or the
+/// driven and fixed ones.
+pub fn grains_grid(bodies: &[Body], dynamic: bool) -> Result<Grid> {
     let mut points = Vec::new();
     let mut triangles = Vec::new();
     let mut velocity = Vec::new();
     let mut ids = Vec::new();
     for (k, body) in bodies.iter().enumerate() {
-        if !matches!(body.shape.collider, Collider::Convex(_)) {
+        if !matches!(body.shape.collider, Collider::Convex(_)) || body.is_dynamic() != dynamic {
             continue;
         }
         let base = points.len();

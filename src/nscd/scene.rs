@@ -33,6 +33,22 @@
 //! normal = [0, 0, 1]
 //! material = "steel"
 //!
+//! [[box]]                           # a driven (or fixed) cuboid, infinite mass
+//! name = "pusher"
+//! size = ["0.05 m", "0.2 m", "0.1 m"]
+//! centre = ["-0.1 m", 0, "0.055 m"]
+//! orientation = [0, 0, "30 deg"]    # about x, then y, then z (fixed axes)
+//! material = "steel"
+//! velocity = ["0.2 m/s", 0, 0]      # or a table, below; plus amplitude/frequency
+//!
+//! [[driven]]                        # a driven rigid body from a tetra mesh
+//! name = "tine"
+//! mesh = "../meshes/tine.msh"       # relative to the scene file
+//! convex = ["blade", "shank"]       # or "volumes" (default) or "hull"
+//! position = [0, "0.5 m", "0.005 m"]
+//! velocity = { times = ["0 s", "0.1 s"], values = [[0, 0, 0], ["0.2 m/s", 0, 0]] }
+//! # or: velocity = { file = "cycle.csv" }   (rows t, vx, vy, vz in s and m/s)
+//!
 //! [[block]]                         # boxes; `count` copies `step` apart
 //! name = "cube"
 //! size = ["0.1 m", "0.1 m", "0.1 m"]
@@ -53,7 +69,8 @@ use std::sync::Arc;
 use nalgebra::{Isometry3, Point3, Translation3, Unit, UnitQuaternion, Vector3};
 use serde::Deserialize;
 
-use super::body::{Body, BodyShape, Motion, Prescribed};
+use super::body::{Body, BodyShape, Motion, Prescribed, PrincipalShape};
+use super::motion::{mesh_pieces, Pieces, VelocityTable};
 use super::step::FrictionTable;
 use crate::scene::{
     Acceleration, Angle, Density, Frequency, Length, Time, Validate, Validator, Velocity,
@@ -85,6 +102,12 @@ pub struct NscdScene {
     /// Boxes.
     #[serde(default)]
     pub block: Vec<BlockSpec>,
+    /// Driven or fixed cuboids (infinite mass).
+    #[serde(default, rename = "box")]
+    pub boxes: Vec<BoxSpec>,
+    /// Driven or fixed rigid bodies from tetra meshes (convex pieces).
+    #[serde(default)]
+    pub driven: Vec<DrivenSpec>,
     /// Stones from meshes.
     #[serde(default)]
     pub stones: Option<StonesSpec>,
@@ -200,15 +223,174 @@ pub struct PlaneSpec {
     pub normal: [f64; 3],
     /// Material name.
     pub material: String,
-    /// Prescribed constant velocity (driven plane).
+    /// Prescribed velocity: constant `[vx, vy, vz]` or a table (driven plane).
     #[serde(default)]
-    pub velocity: Option<[Velocity; 3]>,
+    pub velocity: Option<VelocitySpec>,
     /// Prescribed oscillation amplitude (driven plane).
     #[serde(default)]
     pub amplitude: Option<[Length; 3]>,
     /// Oscillation frequency.
     #[serde(default)]
     pub frequency: Option<Frequency>,
+}
+
+/// The `velocity` key of a driven body: a constant `[vx, vy, vz]`, or a
+/// piecewise-linear table `{ times = [...], values = [[vx, vy, vz], ...] }`, or a CSV
+/// file of such a table `{ file = "cycle.csv" }`.
+#[derive(Debug, Clone, PartialEq)]
+pub enum VelocitySpec {
+    /// A constant velocity.
+    Constant([Velocity; 3]),
+    /// A piecewise-linear table.
+    Table(TableSpec),
+}
+
+/// A velocity table in the scene.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TableSpec {
+    /// Breakpoint times (strictly increasing).
+    #[serde(default)]
+    pub times: Option<Vec<Time>>,
+    /// One velocity per time.
+    #[serde(default)]
+    pub values: Option<Vec<[Velocity; 3]>>,
+    /// A CSV file of rows `t, vx, vy, vz` (SI units), relative to the scene file.
+    #[serde(default)]
+    pub file: Option<PathBuf>,
+}
+
+impl<'de> Deserialize<'de> for VelocitySpec {
+    fn deserialize<D: serde::Deserializer<'de>>(
+        deserializer: D,
+    ) -> std::result::Result<Self, D::Error> {
+        struct Visitor;
+        impl<'de> serde::de::Visitor<'de> for Visitor {
+            type Value = VelocitySpec;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str(
+                    "a velocity [vx, vy, vz] or a table { times = [...], values = [[vx, vy, vz], ...] } \
+                     or { file = \"table.csv\" }",
+                )
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(
+                self,
+                seq: A,
+            ) -> std::result::Result<Self::Value, A::Error> {
+                let v = <[Velocity; 3]>::deserialize(
+                    serde::de::value::SeqAccessDeserializer::new(seq),
+                )?;
+                Ok(VelocitySpec::Constant(v))
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(
+                self,
+                map: A,
+            ) -> std::result::Result<Self::Value, A::Error> {
+                let t = TableSpec::deserialize(serde::de::value::MapAccessDeserializer::new(map))?;
+                Ok(VelocitySpec::Table(t))
+            }
+        }
+        deserializer.deserialize_any(Visitor)
+    }
+}
+
+impl<'de> Deserialize<'de> for Pieces {
+    fn deserialize<D: serde::Deserializer<'de>>(
+        deserializer: D,
+    ) -> std::result::Result<Self, D::Error> {
+        struct Visitor;
+        impl<'de> serde::de::Visitor<'de> for Visitor {
+            type Value = Pieces;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("\"volumes\", \"hull\" or a list of physical group names")
+            }
+            fn visit_str<E: serde::de::Error>(
+                self,
+                v: &str,
+            ) -> std::result::Result<Self::Value, E> {
+                match v {
+                    "volumes" => Ok(Pieces::Volumes),
+                    "hull" => Ok(Pieces::Hull),
+                    other => Err(E::custom(format!(
+                        "\"{other}\" is not \"volumes\" or \"hull\" (or give a list of physical groups)"
+                    ))),
+                }
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(
+                self,
+                seq: A,
+            ) -> std::result::Result<Self::Value, A::Error> {
+                let names =
+                    Vec::<String>::deserialize(serde::de::value::SeqAccessDeserializer::new(seq))?;
+                Ok(Pieces::Groups(names))
+            }
+        }
+        deserializer.deserialize_any(Visitor)
+    }
+}
+
+/// `[[box]]`: a cuboid that follows a prescribed motion (static without one).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BoxSpec {
+    /// Name.
+    pub name: String,
+    /// Edge lengths along the box's own axes.
+    pub size: [Length; 3],
+    /// Centre at t = 0.
+    pub centre: [Length; 3],
+    /// Rotations about x, then y, then z (fixed axes).
+    #[serde(default)]
+    pub orientation: Option<[Angle; 3]>,
+    /// Material name.
+    pub material: String,
+    /// Prescribed velocity (constant or table).
+    #[serde(default)]
+    pub velocity: Option<VelocitySpec>,
+    /// Prescribed oscillation amplitude.
+    #[serde(default)]
+    pub amplitude: Option<[Length; 3]>,
+    /// Oscillation frequency.
+    #[serde(default)]
+    pub frequency: Option<Frequency>,
+}
+
+/// `[[driven]]`: a rigid body from a tetra mesh, as infinite-mass convex pieces that
+/// share one prescribed motion (static without one).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DrivenSpec {
+    /// Name (pieces get `name/piece` when there are several).
+    pub name: String,
+    /// The `.msh` file, relative to the scene file.
+    pub mesh: PathBuf,
+    /// How the mesh is cut into convex pieces.
+    #[serde(default)]
+    pub convex: Pieces,
+    /// Uniform scale applied to the mesh coordinates.
+    #[serde(default = "unit_scale")]
+    pub scale: f64,
+    /// Rotations about x, then y, then z (fixed axes), applied after the scale.
+    #[serde(default)]
+    pub orientation: Option<[Angle; 3]>,
+    /// Where the mesh's origin goes (applied last).
+    #[serde(default)]
+    pub position: Option<[Length; 3]>,
+    /// Material name.
+    pub material: String,
+    /// Prescribed velocity (constant or table).
+    #[serde(default)]
+    pub velocity: Option<VelocitySpec>,
+    /// Prescribed oscillation amplitude.
+    #[serde(default)]
+    pub amplitude: Option<[Length; 3]>,
+    /// Oscillation frequency.
+    #[serde(default)]
+    pub frequency: Option<Frequency>,
+}
+
+fn unit_scale() -> f64 {
+    1.0
 }
 
 /// `[[block]]`.
@@ -289,7 +471,8 @@ impl Default for OutputSpec {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct AnalysisSpec {
-    /// `incline` (a slider and a sticker), `rest` (nothing should move) or `deposit`.
+    /// `incline` (a slider and a sticker), `rest` (nothing should move), `deposit` or
+    /// `push` (driven bodies push blocks along a floor at their prescribed speed).
     pub kind: String,
     /// The sliding block (incline).
     #[serde(default)]
@@ -297,13 +480,19 @@ pub struct AnalysisSpec {
     /// The sticking block (incline).
     #[serde(default)]
     pub sticker: Option<String>,
-    /// The acceleration is fitted after this time (incline).
+    /// The acceleration is fitted (incline), the push measured (push) after this time.
     #[serde(default)]
     pub after: Option<Time>,
+    /// Driven boxes or meshes that push (push), one per pushed block.
+    #[serde(default)]
+    pub pushers: Option<Vec<String>>,
+    /// The pushed blocks (push), in the order of `pushers`.
+    #[serde(default)]
+    pub pushed: Option<Vec<String>>,
 }
 
 /// Analysis kinds.
-pub const ANALYSIS_KINDS: [&str; 3] = ["incline", "rest", "deposit"];
+pub const ANALYSIS_KINDS: [&str; 4] = ["incline", "rest", "deposit", "push"];
 
 impl Validate for NscdScene {
     fn validate(&self, v: &mut Validator) {
@@ -390,13 +579,57 @@ impl Validate for NscdScene {
                 n.iter().all(|x| x.is_finite()) && n.norm() > 0.0,
                 "must be a non-zero vector",
             );
-            if p.amplitude.is_some() {
+            validate_motion(
+                v,
+                &format!("plane[{i}]"),
+                &p.velocity,
+                &p.amplitude,
+                &p.frequency,
+            );
+        }
+        let mut names: Vec<&str> = Vec::new();
+        for (i, b) in self.boxes.iter().enumerate() {
+            let key = format!("box[{i}]");
+            check_name(v, &key, &b.name, &mut names);
+            for k in 0..3 {
+                v.positive(&format!("{key}.size[{k}]"), b.size[k]);
+                v.finite(&format!("{key}.centre[{k}]"), b.centre[k]);
+                if let Some(o) = &b.orientation {
+                    v.finite(&format!("{key}.orientation[{k}]"), o[k]);
+                }
+            }
+            v.check(
+                &format!("{key}.material"),
+                known(&b.material),
+                unknown(&b.material),
+            );
+            validate_motion(v, &key, &b.velocity, &b.amplitude, &b.frequency);
+        }
+        for (i, d) in self.driven.iter().enumerate() {
+            let key = format!("driven[{i}]");
+            check_name(v, &key, &d.name, &mut names);
+            v.positive(&format!("{key}.scale"), d.scale);
+            for k in 0..3 {
+                if let Some(p) = &d.position {
+                    v.finite(&format!("{key}.position[{k}]"), p[k]);
+                }
+                if let Some(o) = &d.orientation {
+                    v.finite(&format!("{key}.orientation[{k}]"), o[k]);
+                }
+            }
+            if let Pieces::Groups(groups) = &d.convex {
                 v.check(
-                    &format!("plane[{i}].frequency"),
-                    p.frequency.is_some_and(|f| f.si() > 0.0),
-                    "an oscillating plane needs a positive frequency",
+                    &format!("{key}.convex"),
+                    !groups.is_empty(),
+                    "give at least one physical group (or \"volumes\" or \"hull\")",
                 );
             }
+            v.check(
+                &format!("{key}.material"),
+                known(&d.material),
+                unknown(&d.material),
+            );
+            validate_motion(v, &key, &d.velocity, &d.amplitude, &d.frequency);
         }
         let dense = |name: &str| {
             self.material
@@ -472,19 +705,188 @@ impl Validate for NscdScene {
                     "an incline analysis needs an inclined gravity",
                 );
             }
+            if a.kind == "push" {
+                let pushers = a.pushers.as_deref().unwrap_or(&[]);
+                let pushed = a.pushed.as_deref().unwrap_or(&[]);
+                v.check(
+                    "analysis.pushers",
+                    !pushers.is_empty(),
+                    "name at least one driven box or mesh",
+                );
+                v.check(
+                    "analysis.pushed",
+                    pushed.len() == pushers.len(),
+                    format!(
+                        "name one block per pusher ({} pushers, {} pushed)",
+                        pushers.len(),
+                        pushed.len()
+                    ),
+                );
+                for (k, name) in pushers.iter().enumerate() {
+                    let moving = |vel: &Option<VelocitySpec>| vel.is_some();
+                    v.check(
+                        &format!("analysis.pushers[{k}]"),
+                        self.boxes
+                            .iter()
+                            .any(|b| &b.name == name && moving(&b.velocity))
+                            || self
+                                .driven
+                                .iter()
+                                .any(|d| &d.name == name && moving(&d.velocity)),
+                        format!("\"{name}\" is not a [[box]] or [[driven]] with a velocity"),
+                    );
+                }
+                for (k, name) in pushed.iter().enumerate() {
+                    v.check(
+                        &format!("analysis.pushed[{k}]"),
+                        self.block.iter().any(|b| &b.name == name && b.count == 1),
+                        format!("\"{name}\" is not a single [[block]]"),
+                    );
+                }
+                v.check(
+                    "gravity.incline",
+                    self.gravity.incline.is_none(),
+                    "a push analysis measures friction on a level floor (no incline)",
+                );
+            }
         }
     }
+}
+
+/// Records a duplicate or empty body name.
+fn check_name<'a>(v: &mut Validator, key: &str, name: &'a str, names: &mut Vec<&'a str>) {
+    v.check(
+        &format!("{key}.name"),
+        !name.trim().is_empty(),
+        "must not be empty",
+    );
+    if names.contains(&name) {
+        v.fail(&format!("{key}.name"), format!("\"{name}\" is used twice"));
+    }
+    names.push(name);
+}
+
+/// Checks the motion keys of a driven body `key` (`plane[0]`, `box[1]` …).
+fn validate_motion(
+    v: &mut Validator,
+    key: &str,
+    velocity: &Option<VelocitySpec>,
+    amplitude: &Option<[Length; 3]>,
+    frequency: &Option<Frequency>,
+) {
+    match velocity {
+        None => {}
+        Some(VelocitySpec::Constant(c)) => {
+            for (k, x) in c.iter().enumerate() {
+                v.finite(&format!("{key}.velocity[{k}]"), *x);
+            }
+        }
+        Some(VelocitySpec::Table(t)) => match (&t.times, &t.values, &t.file) {
+            (None, None, Some(_)) => {}
+            (Some(times), Some(values), None) => {
+                let table = VelocityTable::new(
+                    times.iter().map(|t| t.si()).collect(),
+                    values.iter().map(velocity_vector).collect(),
+                );
+                if let Err(reason) = table {
+                    v.fail(&format!("{key}.velocity"), reason);
+                }
+            }
+            _ => v.fail(
+                &format!("{key}.velocity"),
+                "a table needs both times and values, or a file (not both)",
+            ),
+        },
+    }
+    if let Some(a) = amplitude {
+        for (k, x) in a.iter().enumerate() {
+            v.finite(&format!("{key}.amplitude[{k}]"), *x);
+        }
+        v.check(
+            &format!("{key}.frequency"),
+            frequency.is_some_and(|f| f.si() > 0.0 && f.si().is_finite()),
+            "an oscillation (amplitude) needs a positive frequency",
+        );
+    }
+}
+
+fn velocity_vector(v: &[Velocity; 3]) -> Vector3<f64> {
+    Vector3::new(v[0].si(), v[1].si(), v[2].si())
+}
+
+/// The prescribed motion of a driven body `key` (reads a table's CSV file): static when
+/// it has neither velocity nor oscillation.
+fn prescribed_motion(
+    scene_path: &Path,
+    key: &str,
+    velocity: &Option<VelocitySpec>,
+    amplitude: &Option<[Length; 3]>,
+    frequency: &Option<Frequency>,
+) -> Result<Motion> {
+    let mut prescribed = Prescribed {
+        amplitude: amplitude.as_ref().map_or(Vector3::zeros(), vec3),
+        frequency: frequency.map_or(0.0, Frequency::si),
+        ..Prescribed::default()
+    };
+    match velocity {
+        None => {}
+        Some(VelocitySpec::Constant(c)) => prescribed.velocity = velocity_vector(c),
+        Some(VelocitySpec::Table(t)) => {
+            let table = match (&t.times, &t.values, &t.file) {
+                (_, _, Some(file)) => {
+                    VelocityTable::read_csv(&NscdScene::resolve(scene_path, file)).map_err(|e| {
+                        Error::invalid(scene_path, format!("key {key}.velocity.file: {e}"))
+                    })?
+                }
+                (Some(times), Some(values), None) => VelocityTable::new(
+                    times.iter().map(|t| t.si()).collect(),
+                    values.iter().map(velocity_vector).collect(),
+                )
+                .map_err(|e| Error::invalid(scene_path, format!("key {key}.velocity: {e}")))?,
+                _ => {
+                    return Err(Error::invalid(
+                        scene_path,
+                        format!("key {key}.velocity: a table needs both times and values"),
+                    ))
+                }
+            };
+            prescribed = prescribed.with_table(table);
+        }
+    }
+    Ok(if prescribed.is_rest() {
+        Motion::Static
+    } else {
+        Motion::Driven(prescribed)
+    })
+}
+
+/// A rotation about x, then y, then z (fixed axes).
+fn rotation(angles: &Option<[Angle; 3]>) -> UnitQuaternion<f64> {
+    angles.map_or(UnitQuaternion::identity(), |a| {
+        UnitQuaternion::from_euler_angles(a[0].si(), a[1].si(), a[2].si())
+    })
 }
 
 /// The bodies and tables a scene builds.
 #[derive(Debug, Clone)]
 pub struct Model {
-    /// Every body: planes first, then blocks, then stones.
+    /// Every body: planes first, then boxes, driven meshes' pieces, blocks, stones.
     pub bodies: Vec<Body>,
     /// µ per material pair.
     pub friction: FrictionTable,
     /// Equivalent-sphere diameters of the stones (m), in body order.
     pub stone_diameters: Vec<f64>,
+    /// The boxes and driven meshes, each with its bodies (one per convex piece).
+    pub driven: Vec<DrivenBody>,
+}
+
+/// A `[[box]]` or `[[driven]]` of the scene and the bodies it became.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DrivenBody {
+    /// The scene's name.
+    pub name: String,
+    /// Indices into [`Model::bodies`] of its pieces.
+    pub pieces: Vec<usize>,
 }
 
 fn vec3(v: &[Length; 3]) -> Vector3<f64> {
@@ -528,22 +930,16 @@ impl NscdScene {
             );
         }
         let mut bodies = Vec::new();
-        for p in &self.plane {
+        for (i, p) in self.plane.iter().enumerate() {
             let normal = Unit::new_normalize(Vector3::from(p.normal));
             let shape = Arc::new(BodyShape::half_space(normal));
-            let velocity = p.velocity.map_or(Vector3::zeros(), |v| {
-                Vector3::new(v[0].si(), v[1].si(), v[2].si())
-            });
-            let amplitude = p.amplitude.as_ref().map_or(Vector3::zeros(), vec3);
-            let motion = if velocity == Vector3::zeros() && amplitude == Vector3::zeros() {
-                Motion::Static
-            } else {
-                Motion::Driven(Prescribed {
-                    velocity,
-                    amplitude,
-                    frequency: p.frequency.map_or(0.0, Frequency::si),
-                })
-            };
+            let motion = prescribed_motion(
+                scene_path,
+                &format!("plane[{i}]"),
+                &p.velocity,
+                &p.amplitude,
+                &p.frequency,
+            )?;
             bodies.push(Body::fixed(
                 &p.name,
                 shape,
@@ -551,6 +947,62 @@ impl NscdScene {
                 Isometry3::translation(p.point[0].si(), p.point[1].si(), p.point[2].si()),
                 motion,
             ));
+        }
+        let mut driven = Vec::new();
+        for (i, b) in self.boxes.iter().enumerate() {
+            let key = format!("box[{i}]");
+            let motion =
+                prescribed_motion(scene_path, &key, &b.velocity, &b.amplitude, &b.frequency)?;
+            let shape = BodyShape::cuboid(vec3(&b.size))
+                .map_err(|e| Error::invalid(scene_path, format!("key {key}.size: {e}")))?;
+            driven.push(DrivenBody {
+                name: b.name.clone(),
+                pieces: vec![bodies.len()],
+            });
+            bodies.push(Body::fixed(
+                &b.name,
+                Arc::new(shape),
+                self.material_index(&b.material),
+                Isometry3::from_parts(
+                    Translation3::from(vec3(&b.centre)),
+                    rotation(&b.orientation),
+                ),
+                motion,
+            ));
+        }
+        for (i, d) in self.driven.iter().enumerate() {
+            let key = format!("driven[{i}]");
+            let motion =
+                prescribed_motion(scene_path, &key, &d.velocity, &d.amplitude, &d.frequency)?;
+            let pieces = driven_pieces(scene_path, &key, d)?;
+            let several = pieces.len() > 1;
+            let mut indices = Vec::with_capacity(pieces.len());
+            for (piece, principal) in pieces {
+                let name = if several {
+                    format!("{}/{piece}", d.name)
+                } else {
+                    d.name.clone()
+                };
+                indices.push(bodies.len());
+                bodies.push(Body::fixed(
+                    &name,
+                    Arc::new(principal.shape),
+                    self.material_index(&d.material),
+                    principal.pose,
+                    motion,
+                ));
+            }
+            driven.push(DrivenBody {
+                name: d.name.clone(),
+                pieces: indices,
+            });
+        }
+        // A driven body starts at its prescribed velocity: the step's position update
+        // uses the velocity at the start of the step.
+        for body in &mut bodies {
+            if let Motion::Driven(prescribed) = body.motion {
+                body.velocity = prescribed.velocity_at(0.0);
+            }
         }
         for b in &self.block {
             let size = vec3(&b.size);
@@ -590,8 +1042,39 @@ impl NscdScene {
             bodies,
             friction,
             stone_diameters,
+            driven,
         })
     }
+}
+
+/// The convex pieces of a `[[driven]]` mesh in world coordinates (scaled, rotated,
+/// placed), each in its principal frame.
+fn driven_pieces(
+    scene_path: &Path,
+    key: &str,
+    spec: &DrivenSpec,
+) -> Result<Vec<(String, PrincipalShape)>> {
+    let file = NscdScene::resolve(scene_path, &spec.mesh);
+    let mesh = crate::mesh::read_msh(&file)
+        .map_err(|e| Error::invalid(scene_path, format!("key {key}.mesh: {e}")))?;
+    let pieces = mesh_pieces(&mesh, &spec.convex)
+        .map_err(|e| Error::invalid(scene_path, format!("key {key}.convex: {e}")))?;
+    let rotation = rotation(&spec.orientation);
+    let shift = spec.position.as_ref().map_or(Vector3::zeros(), vec3);
+    let mut out = Vec::with_capacity(pieces.len());
+    for (name, points) in pieces {
+        let world: Vec<Point3<f64>> = points
+            .iter()
+            .map(|p| Point3::from(rotation * (spec.scale * p.coords) + shift))
+            .collect();
+        let what = format!("key {key}.convex: piece \"{name}\" of {}", file.display());
+        let principal = BodyShape::convex_hull(&world, &what).map_err(|e| match e {
+            Error::Message(m) => Error::invalid(scene_path, m),
+            e => e,
+        })?;
+        out.push((name, principal));
+    }
+    Ok(out)
 }
 
 /// Reads the stone meshes of `spec.directory` (sorted `stone_*.msh`) as convex hulls.
@@ -713,4 +1196,214 @@ fn place_stones(
         ));
     }
     Ok((bodies, diameters))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::scene_from_str;
+
+    /// A scene file path in the crate's `scenes/` (meshes resolve against it).
+    fn scene_path() -> PathBuf {
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes/test.toml")
+    }
+
+    const BASE: &str = r#"
+[time]
+duration = "0.1 s"
+dt = "1 ms"
+[solver]
+tolerance = 1e-8
+alert_distance = "1 mm"
+[[material]]
+name = "steel"
+[[plane]]
+name = "floor"
+point = [0, 0, 0]
+normal = [0, 0, 1]
+material = "steel"
+"#;
+
+    fn load(extra: &str) -> Result<NscdScene> {
+        scene_from_str(&scene_path(), &format!("{BASE}{extra}"), None).map(|(s, _)| s)
+    }
+
+    fn build(extra: &str) -> Result<Model> {
+        load(extra)?.build(&scene_path())
+    }
+
+    fn message(result: Result<impl std::fmt::Debug>) -> String {
+        result.unwrap_err().to_string()
+    }
+
+    #[test]
+    fn boxes_and_driven_meshes_become_infinite_mass_pieces() {
+        let model = build(
+            r#"
+[[box]]
+name = "pusher"
+size = ["0.2 m", "0.1 m", "0.1 m"]
+centre = [0, 0, "0.5 m"]
+orientation = [0, 0, "90 deg"]
+material = "steel"
+velocity = { times = ["0 s", "0.1 s"], values = [["0.1 m/s", 0, 0], ["0.3 m/s", 0, 0]] }
+
+[[box]]
+name = "wall"
+size = ["0.1 m", "1 m", "1 m"]
+centre = ["2 m", 0, 0]
+material = "steel"
+
+[[driven]]
+name = "cube"
+mesh = "../tests/fixtures/cube_tet4_100.msh"
+scale = 0.1
+position = ["1 m", 0, 0]
+material = "steel"
+velocity = [0, 0, "-1 m/s"]
+amplitude = [0, 0, "1 mm"]
+frequency = "50 Hz"
+"#,
+        )
+        .unwrap();
+        assert_eq!(model.bodies.len(), 4);
+        let names: Vec<&str> = model.driven.iter().map(|d| d.name.as_str()).collect();
+        assert_eq!(names, ["pusher", "wall", "cube"]);
+        assert_eq!(model.driven[2].pieces, [3]);
+        // The rotated box: its long axis along y.
+        let pusher = &model.bodies[1];
+        let extent_y = pusher
+            .world_vertices()
+            .iter()
+            .map(|p| p.y)
+            .fold(0.0, f64::max);
+        assert!((extent_y - 0.1).abs() < 1e-12, "{extent_y}");
+        assert!(pusher.mass.is_infinite() && pusher.inverse_mass() == 0.0);
+        // A table motion starts at its first value, interpolates, holds.
+        let Motion::Driven(p) = pusher.motion else {
+            panic!("{:?}", pusher.motion)
+        };
+        assert_eq!(pusher.velocity, Vector3::new(0.1, 0.0, 0.0));
+        assert!((p.velocity_at(0.05).x - 0.2).abs() < 1e-15);
+        assert_eq!(p.velocity_at(1.0).x, 0.3);
+        assert!((p.displacement(0.0, 0.2).x - (0.02 + 0.03)).abs() < 1e-15);
+        // No motion keys: static.
+        assert_eq!(model.bodies[2].motion, Motion::Static);
+        // The mesh (unit cube) scaled by 0.1 and moved: one piece, its hull.
+        let cube = &model.bodies[3];
+        assert!((cube.shape.volume - 1e-3).abs() < 1e-15);
+        assert!((cube.position - Vector3::new(1.05, 0.05, 0.05)).norm() < 1e-12);
+        let Motion::Driven(p) = cube.motion else {
+            panic!()
+        };
+        let omega = std::f64::consts::TAU * 50.0;
+        assert!((cube.velocity.z - (-1.0 + 1e-3 * omega)).abs() < 1e-12);
+        assert!(p.table.is_none());
+    }
+
+    #[test]
+    fn mesh_groups_give_pieces_and_bad_keys_name_themselves() {
+        let driven = |convex: &str| {
+            format!(
+                "[[driven]]\nname = \"cube\"\nmesh = \"../tests/fixtures/cube_tet4_100.msh\"\n\
+                 material = \"steel\"\nconvex = {convex}\n"
+            )
+        };
+        // "hull" and the single volume group "cube" give the same unit cube.
+        for convex in ["\"hull\"", "\"volumes\"", "[\"cube\"]"] {
+            let model = build(&driven(convex)).unwrap();
+            assert_eq!(model.bodies.len(), 2, "{convex}");
+            assert!(
+                (model.bodies[1].shape.volume - 1.0).abs() < 1e-12,
+                "{convex}"
+            );
+        }
+        let err = message(build(&driven("[\"tip\"]")));
+        assert!(
+            err.contains("test.toml: key driven[0].convex: physical group \"tip\""),
+            "{err}"
+        );
+        // A surface group alone is flat: a degenerate hull, refused with the key.
+        let err = message(build(&driven("[\"left\"]")));
+        assert!(
+            err.contains("key driven[0].convex: piece \"left\""),
+            "{err}"
+        );
+        let err = message(build(&driven("\"halves\"")));
+        assert!(err.contains("key driven[0].convex"), "{err}");
+        let err = message(build(&driven("[]")));
+        assert!(err.contains("key driven[0].convex"), "{err}");
+        let missing = driven("\"hull\"").replace("cube_tet4_100", "nothing");
+        let err = message(build(&missing));
+        assert!(err.contains("test.toml: key driven[0].mesh: "), "{err}");
+    }
+
+    #[test]
+    fn bad_motions_are_refused_with_their_key() {
+        let with_box = |velocity: &str| {
+            format!(
+                "[[box]]\nname = \"b\"\nsize = [1, 1, 1]\ncentre = [0, 0, 2]\n\
+                 material = \"steel\"\n{velocity}\n"
+            )
+        };
+        for (velocity, key) in [
+            (
+                "velocity = { times = [0, 0], values = [[0, 0, 0], [1, 0, 0]] }",
+                "key box[0].velocity: times must increase strictly",
+            ),
+            (
+                "velocity = { times = [0, 1], values = [[0, 0, 0]] }",
+                "key box[0].velocity: 2 times but 1 values",
+            ),
+            (
+                "velocity = { times = [0, 1] }",
+                "key box[0].velocity: a table needs both",
+            ),
+            (
+                "velocity = { times = [0], values = [[0, 0, 0]], speed = 1 }",
+                "unknown key box[0].velocity.speed",
+            ),
+            ("velocity = \"fast\"", "key box[0].velocity: invalid type"),
+            (
+                "velocity = [\"1 m\", 0, 0]",
+                "key box[0].velocity[0]: unit \"m\" is not a velocity",
+            ),
+            (
+                "amplitude = [0, 0, \"1 mm\"]",
+                "key box[0].frequency: an oscillation",
+            ),
+        ] {
+            let err = message(load(&with_box(velocity)));
+            assert!(err.contains(key), "{velocity}: {err}");
+            assert!(
+                err.starts_with(&scene_path().display().to_string()),
+                "{err}"
+            );
+        }
+        let err = message(load(
+            &with_box("").replace("size = [1, 1, 1]", "size = [1, -1, 1]"),
+        ));
+        assert!(
+            err.contains("key box[0].size[1]: must be positive"),
+            "{err}"
+        );
+        let twice = format!("{}{}", with_box(""), with_box(""));
+        assert!(message(load(&twice)).contains("key box[1].name: \"b\" is used twice"));
+        // A CSV table: read at build, its errors name the key and the line.
+        let dir = tempfile::tempdir().unwrap();
+        let csv = dir.path().join("cycle.csv");
+        std::fs::write(&csv, "t,vx,vy,vz\n0,0,0,0\n0.1,1,0\n").unwrap();
+        let file = format!("velocity = {{ file = \"{}\" }}", csv.display());
+        let err = message(build(&with_box(&file)));
+        assert!(
+            err.contains("key box[0].velocity.file: ") && err.contains("line 3: 3 numbers"),
+            "{err}"
+        );
+        std::fs::write(&csv, "0,0,0,0\n0.1,1,0,0\n").unwrap();
+        let model = build(&with_box(&file)).unwrap();
+        let Motion::Driven(p) = model.bodies[1].motion else {
+            panic!()
+        };
+        assert!((p.velocity_at(0.05).x - 0.5).abs() < 1e-15);
+    }
 }
