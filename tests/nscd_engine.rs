@@ -104,9 +104,17 @@ fn dropped_stones_lose_energy_and_settle_without_sinking() {
     // ΔKE − W_gravity per step: contacts only dissipate, so ≤ 0 up to the NLGS
     // tolerance; allow 1e-6 of the total work of gravity.
     assert!(figure(&f, "max_energy_rise_relative") <= 1e-6, "{f}");
-    // Acceptance: final mean interpenetration below 0.1 % of d50 (measured 9e-7).
+    // Acceptance: final mean interpenetration below 0.1 % of d50 (measured 6.5e-6;
+    // the full 200-stone preset 4.8e-6).
     assert!(
         figure(&f, "final_mean_interpenetration_over_d50") < 1e-3,
+        "{f}"
+    );
+    // And no stone sunk into another: the deepest final overlap is below 0.5 % of d50
+    // (measured 8.3e-4 = 33 µm; the full preset 6.0e-4; before the separating-axis
+    // narrow phase the full preset ended at 0.197 = 7.8 mm).
+    assert!(
+        figure(&f, "final_max_interpenetration_over_d50") < 5e-3,
         "{f}"
     );
     // Settling: 99 % of the peak kinetic energy is gone by the end (measured 99.8 %).

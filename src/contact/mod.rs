@@ -4,9 +4,10 @@
 //!
 //! - [`broad`]: sort-and-sweep on AABBs inflated by the alert distance; half-spaces are
 //!   paired with every bounded body near their plane;
-//! - [`narrow`]: parry3d contact manifolds (several points per face contact: the clipped
-//!   support faces), kept when their gap is at most the alert distance, so a contact
-//!   about to close within the step is in the problem before it closes (LMGC90's gap
+//! - [`narrow`]: a full separating-axis test (face normals and Minkowski edge–edge
+//!   axes); points of the clipped reference faces and of crossing edges, each with its
+//!   own normal, kept when their gap is at most the alert distance, so a contact about
+//!   to close within the step is in the problem before it closes (LMGC90's gap
 //!   prediction);
 //! - [`frame`]: the local frame (normal, two tangents) of a contact, a function of the
 //!   normal alone so a persistent contact keeps its tangents;

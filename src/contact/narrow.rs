@@ -1,27 +1,41 @@
-//! Narrow phase: parry3d contact manifolds between convex polyhedra and half-spaces.
+//! Narrow phase: contact points between convex polyhedra and half-spaces, each with
+//! its own normal, gap and the parry feature ids that make its [`ContactKey`].
 //!
-//! A face contact gives several points (parry clips the two support faces against each
-//! other), each with the parry feature ids that make its [`ContactKey`]. Points whose
-//! gap exceeds the alert distance are dropped; parry's extra GJK point (unknown
-//! features) is kept only when the clipping found nothing; points closer together than
-//! a millionth of the bodies' size are merged (coincident corners of aligned faces would
-//! otherwise give two rows of W that are equal).
+//! # Two polyhedra: a full separating-axis test
+//! The separation along every face normal of both bodies (O(faces × vertices)) and
+//! along every edge–edge axis `e_a × e_b` whose edges form a face of the Minkowski
+//! difference (Gregorius's Gauss-map test, edges near the other body only) gives the
+//! separating-axis answer `s`: the distance when apart (face–vertex and edge–edge
+//! closest features), minus the penetration depth when overlapping. A pair with
+//! `s` above the alert distance has no points. Otherwise its points are
+//! - **face points**, for the best face of each body in turn as reference: the other
+//!   body's incident face (most opposed to the reference normal) clipped by the
+//!   reference face's side planes (Sutherland–Hodgman), plus any other vertex of the
+//!   incident body over the reference face; gap along the face normal;
+//! - **edge crossings**: every Minkowski edge pair whose edges cross (seen along their
+//!   axis, within the alert distance sideways) — one point at the edges' closest
+//!   points, normal `e_a × e_b`, gap the separation along it. Two edges of one stone
+//!   across an edge of another are two points, each with its own normal;
+//! - if none of these, the two support vertices along the best axis, gap `s`.
 //!
-//! # The normal of two polyhedra
-//! parry's own polyhedron–polyhedron manifold takes the GJK direction as the normal;
-//! for faces in exact or near contact (a resting stack: distance ≈ 0) that direction is
-//! round-off, and EPA may fail outright, losing the contact. Here the separation along
-//! every face normal of both bodies is computed first (a partial separating-axis test,
-//! O(faces × vertices)): a face normal realises the separation of any face–face or
-//! face–vertex contact, and GJK/EPA's direction is taken only when it separates the
-//! bodies clearly better (an edge–edge contact). The support faces are then clipped by
-//! parry along that normal.
+//! A point below its reference plane counts only if it is inside the other body (else
+//! it is a far-side feature, not an overlap); when `s > 0` no point is deeper than
+//! round-off, when `s ≤ 0` none deeper than `s − alert`. Points whose gap exceeds the
+//! alert distance are dropped; points closer together than a millionth of the bodies'
+//! size are merged, the first kept (coincident corners of aligned faces would otherwise
+//! give two equal rows of W; the overall best face comes first, so a resting face pair
+//! keeps its reference and keys).
+//!
+//! Why not parry's polyhedron manifold: it takes the GJK/EPA direction as the single
+//! normal and clips the two support features along it; for faces in exact contact that
+//! direction is round-off and EPA may fail, and for a tumbling stone's edge contact the
+//! clipped points were not the closest ones (gaps of +1.6 mm reported where the stones
+//! overlapped by 0.9 mm), so stones sank into each other unseen (`drop_box`).
+//!
+//! Half-space: every hull vertex within the alert distance.
 
 use nalgebra::{Isometry3, Point3, Unit, Vector3};
-use parry3d_f64::query::details::contact_support_map_support_map_with_params;
-use parry3d_f64::query::gjk::{GJKResult, VoronoiSimplex};
-use parry3d_f64::query::{ContactManifold, TrackedContact};
-use parry3d_f64::shape::{PackedFeatureId, PolygonalFeature, PolygonalFeatureMap, SupportMap};
+use parry3d_f64::shape::{PackedFeatureId, SupportMap};
 
 use super::broad::{aabb_of, candidate_pairs, BroadShape};
 use super::shape::{Collider, ConvexShape};
@@ -88,100 +102,268 @@ pub fn detect(
     out
 }
 
-/// The contact manifold of two convex polyhedra (`pos12`: b's frame in a's), normal
-/// chosen as in the module docs.
-fn convex_convex_manifold(
+/// A contact point of a pair in the first body's frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct LocalContact {
+    /// The point on (or in) the first body.
+    on_a: Point3<f64>,
+    /// The point on (or in) the second body.
+    on_b: Point3<f64>,
+    /// Unit normal from the first body to the second.
+    normal: Vector3<f64>,
+    /// Feature codes on the first and second body.
+    features: [u32; 2],
+    /// Signed gap along the normal.
+    gap: f64,
+}
+
+/// The contact points of two convex polyhedra (`pos12`: b's frame in a's; everything
+/// in a's frame), as in the module docs: the best face's clipped contact polygon, plus
+/// every edge–edge crossing whose own axis separates the bodies better than any face.
+fn convex_convex_contacts(
     pos12: &Isometry3<f64>,
     a: &ConvexShape,
     b: &ConvexShape,
     alert: f64,
     size: f64,
-    manifold: &mut ContactManifold<(), ()>,
+    out: &mut Vec<LocalContact>,
 ) {
-    let tolerance = 1e-9 * size;
-    let best = face_separation(pos12, a, b, tolerance);
-    if best.separation > alert {
+    let [face_a, face_b] = face_separations(pos12, a, b);
+    // Ties (within 1e-9 of the size) go to a's faces, so that two coplanar faces in
+    // contact keep one reference from step to step (and their contact ids).
+    let (first, second) = if face_b.separation > face_a.separation + 1e-9 * size {
+        (face_b, face_a)
+    } else {
+        (face_a, face_b)
+    };
+    if first.separation > alert {
         return;
     }
-    if let GJKResult::ClosestPoints(p1, p2, dir) = contact_support_map_support_map_with_params(
-        pos12,
-        a,
-        b,
-        alert,
-        &mut VoronoiSimplex::new(),
-        Some(best.normal),
-    ) {
-        let distance = (p2 - p1).dot(&dir);
-        if distance > best.separation + tolerance {
-            edge_manifold(pos12, a, b, dir, manifold);
-            if manifold.points.iter().all(|c| c.dist > alert) {
-                // The clipped support features missed each other: keep GJK's pair of
-                // closest points, so the contact is not lost.
-                manifold.points.push(TrackedContact::new(
-                    p1,
-                    pos12.inverse_transform_point(&p2),
-                    PackedFeatureId::UNKNOWN,
-                    PackedFeatureId::UNKNOWN,
-                    distance,
-                ));
+    let mut edges = Vec::new();
+    let edge_best = edge_contacts(pos12, a, b, alert, &mut edges);
+    // The separating-axis test's answer: the distance if separated (face–vertex and
+    // edge–edge closest features), minus the penetration depth if not.
+    let (sat, sat_normal) = if edge_best.0 > first.separation + 1e-6 * size {
+        edge_best
+    } else {
+        (first.separation, *first.normal)
+    };
+    if sat > alert {
+        return;
+    }
+    // Separated (an axis with a positive separation): no point can be deeper than
+    // round-off. Overlapping: a point deeper than this along its own normal is not a
+    // contact of the touching features but a far-side feature seen through the body.
+    let tolerance = 1e-9 * size;
+    let floor = if sat > 0.0 { -tolerance } else { sat - alert };
+    // Face contacts: each body's best face as reference, the other's incident face
+    // clipped against it (the overall best first: its points win the merge of
+    // coincident points).
+    for face in [&first, &second] {
+        if face.separation > alert {
+            continue;
+        }
+        let n = *face.normal;
+        if face.on_a {
+            for c in clip_against_reference(a, face.face, b, pos12, alert, floor) {
+                out.push(LocalContact {
+                    on_a: c.on_reference,
+                    on_b: c.on_incident,
+                    normal: n,
+                    features: [PackedFeatureId::face(face.face as u32).0, c.incident_id],
+                    gap: c.gap,
+                });
             }
-            return;
+        } else {
+            let pos21 = pos12.inverse();
+            for c in clip_against_reference(b, face.face, a, &pos21, alert, floor) {
+                out.push(LocalContact {
+                    on_a: pos12 * c.on_incident,
+                    on_b: pos12 * c.on_reference,
+                    normal: n,
+                    features: [c.incident_id, PackedFeatureId::face(face.face as u32).0],
+                    gap: c.gap,
+                });
+            }
         }
     }
-    // Face contact: clip the other body's incident face against the reference face.
-    if best.on_a {
-        for c in clip_against_reference(a, best.face, b, pos12, alert) {
-            manifold.points.push(TrackedContact::new(
-                c.on_reference,
-                pos12.inverse_transform_point(&c.on_incident),
-                PackedFeatureId::face(best.face as u32),
-                PackedFeatureId(c.incident_id),
-                c.gap,
-            ));
-        }
-        manifold.local_n1 = *best.normal;
-        manifold.local_n2 = pos12.inverse_transform_vector(&-*best.normal);
-    } else {
-        let pos21 = pos12.inverse();
-        for c in clip_against_reference(b, best.face, a, &pos21, alert) {
-            manifold.points.push(TrackedContact::new(
-                pos21.inverse_transform_point(&c.on_incident),
-                c.on_reference,
-                PackedFeatureId(c.incident_id),
-                PackedFeatureId::face(best.face as u32),
-                c.gap,
-            ));
-        }
-        manifold.local_n1 = *best.normal;
-        manifold.local_n2 = pos12.inverse_transform_vector(&-*best.normal);
+    // Edge–edge crossings, each with its own normal (a tumbling stone's edge across
+    // another's ridge or rim; two edges across one edge are two points).
+    // A crossing below the other edge is an overlap only if each point is inside the
+    // other body (far from the edges' wedges it is a far-side pair).
+    let pos21 = pos12.inverse();
+    out.extend(edges.into_iter().filter(|c| {
+        c.gap >= floor
+            && (c.gap >= -tolerance
+                || (a.contains(&c.on_b, tolerance) && b.contains(&(pos21 * c.on_a), tolerance)))
+    }));
+    if out.is_empty() {
+        // No point over either reference face and no crossing edges (the bodies meet
+        // corner to corner, or edge to corner): keep the two support vertices along
+        // the separating axis, with the separation as the gap, so the pair is not lost.
+        let (ia, pa) = support_vertex(a, &sat_normal);
+        let (ib, pb) = support_vertex(b, &pos12.inverse_transform_vector(&-sat_normal));
+        out.push(LocalContact {
+            on_a: pa,
+            on_b: pos12 * pb,
+            normal: sat_normal,
+            features: [PackedFeatureId::vertex(ia).0, PackedFeatureId::vertex(ib).0],
+            gap: sat,
+        });
     }
 }
 
-/// An edge–edge contact: parry's clipping of the support features along `normal`.
-fn edge_manifold(
+/// The hull vertex farthest along `dir` (local) and its index.
+fn support_vertex(shape: &ConvexShape, dir: &Vector3<f64>) -> (u32, Point3<f64>) {
+    let (index, point) =
+        shape
+            .points()
+            .iter()
+            .enumerate()
+            .fold((0, &shape.points()[0]), |best, (k, p)| {
+                if p.coords.dot(dir) > best.1.coords.dot(dir) {
+                    (k, p)
+                } else {
+                    best
+                }
+            });
+    (index as u32, *point)
+}
+
+/// The edge–edge crossings of the separating-axis test (Gregorius, "The separating axis
+/// test between convex polyhedra", GDC 2013): for every pair of an edge of `a` and an
+/// edge of `b` that forms a face of the Minkowski difference (their arcs on the Gauss
+/// map cross), the axis `n = e_a × e_b` (oriented out of a) has each edge as its body's
+/// support feature, so the separation along it is `n·(p_b − p_a)` for any points of the
+/// edges. A pair is a contact when that separation is at most `alert` and the two edges
+/// cross (seen along n, their closest points are within `alert` of each other
+/// sideways): the point is at the closest points, the normal is n. Only edges that come
+/// within `alert` of the other body's bounding sphere are tried; near-parallel edges are
+/// skipped (a face normal realises their separation). Returns the largest separation
+/// over all the pairs tried and its axis (−∞ if none).
+fn edge_contacts(
     pos12: &Isometry3<f64>,
     a: &ConvexShape,
     b: &ConvexShape,
-    normal: Unit<Vector3<f64>>,
-    manifold: &mut ContactManifold<(), ()>,
-) {
-    let normal2 = pos12.inverse_transform_unit_vector(&-normal);
-    let mut feature_a = PolygonalFeature::default();
-    let mut feature_b = PolygonalFeature::default();
-    a.local_support_feature(&normal, &mut feature_a);
-    b.local_support_feature(&normal2, &mut feature_b);
-    PolygonalFeature::contacts(
-        pos12,
-        &pos12.inverse(),
-        &normal,
-        &normal2,
-        &feature_a,
-        &feature_b,
-        manifold,
-        false,
-    );
-    manifold.local_n1 = *normal;
-    manifold.local_n2 = *normal2;
+    alert: f64,
+    out: &mut Vec<LocalContact>,
+) -> (f64, Vector3<f64>) {
+    let mut best = (f64::NEG_INFINITY, Vector3::z());
+    let centre_b = Point3::from(pos12.translation.vector);
+    let centre_a = pos12.inverse_transform_point(&Point3::origin());
+    let near = |ends: &[Point3<f64>; 2], centre: &Point3<f64>, radius: f64| {
+        segment_point_distance(ends, centre) <= radius + alert
+    };
+    let edges_a: Vec<_> = a
+        .edges()
+        .iter()
+        .filter(|e| near(&e.ends, &centre_b, b.bounding_radius()))
+        .collect();
+    if edges_a.is_empty() {
+        return best;
+    }
+    // b's edges in a's frame, with the Gauss-map arc of −b (negated face normals).
+    let edges_b: Vec<PlacedEdge> = b
+        .edges()
+        .iter()
+        .filter(|e| near(&e.ends, &centre_a, a.bounding_radius()))
+        .map(|e| {
+            (
+                [pos12 * e.ends[0], pos12 * e.ends[1]],
+                [-(pos12 * e.normals[0]), -(pos12 * e.normals[1])],
+                e.id,
+            )
+        })
+        .collect();
+    for ea in &edges_a {
+        let [na, nb] = ea.normals;
+        let b_x_a = nb.cross(&na);
+        let da = ea.ends[1] - ea.ends[0];
+        for (ends, [nc, nd], id) in &edges_b {
+            // Do the arcs (na, nb) and (nc, nd) cross on the unit sphere?
+            let cba = nc.dot(&b_x_a);
+            let dba = nd.dot(&b_x_a);
+            if cba * dba >= 0.0 {
+                continue;
+            }
+            let d_x_c = nd.cross(nc);
+            let adc = na.dot(&d_x_c);
+            let bdc = nb.dot(&d_x_c);
+            if adc * bdc >= 0.0 || cba * bdc <= 0.0 {
+                continue;
+            }
+            let db = ends[1] - ends[0];
+            let axis = da.cross(&db);
+            let length = axis.norm();
+            // Near-parallel (or degenerate) edges: no reliable axis.
+            if length.is_nan() || length <= 1e-3 * da.norm() * db.norm() {
+                continue;
+            }
+            let mut n = axis / length;
+            if n.dot(&(na + nb)) < 0.0 {
+                n = -n;
+            }
+            let separation = n.dot(&(ends[0] - ea.ends[0]));
+            if separation > best.0 {
+                best = (separation, n);
+            }
+            if separation > alert {
+                continue;
+            }
+            let (on_a, on_b) = closest_points_of_segments(&ea.ends, ends);
+            let offset = on_b - on_a;
+            if (offset - n * n.dot(&offset)).norm() > alert {
+                continue;
+            }
+            out.push(LocalContact {
+                on_a,
+                on_b,
+                normal: n,
+                features: [PackedFeatureId::edge(ea.id).0, PackedFeatureId::edge(*id).0],
+                gap: separation,
+            });
+        }
+    }
+    best
+}
+
+/// An edge of the second body in the first's frame: its ends, the negated normals of
+/// its two faces (the Gauss-map arc of −b), its parry id.
+type PlacedEdge = ([Point3<f64>; 2], [Vector3<f64>; 2], u32);
+
+/// The distance from `p` to the segment `ends`.
+fn segment_point_distance(ends: &[Point3<f64>; 2], p: &Point3<f64>) -> f64 {
+    let d = ends[1] - ends[0];
+    let t = ((p - ends[0]).dot(&d) / d.norm_squared().max(f64::MIN_POSITIVE)).clamp(0.0, 1.0);
+    (ends[0] + d * t - p).norm()
+}
+
+/// The closest points of two segments (Ericson, Real-Time Collision Detection §5.1.9).
+fn closest_points_of_segments(
+    s1: &[Point3<f64>; 2],
+    s2: &[Point3<f64>; 2],
+) -> (Point3<f64>, Point3<f64>) {
+    let d1 = s1[1] - s1[0];
+    let d2 = s2[1] - s2[0];
+    let r = s1[0] - s2[0];
+    let (a, e, f) = (d1.norm_squared(), d2.norm_squared(), d2.dot(&r));
+    let c = d1.dot(&r);
+    let b = d1.dot(&d2);
+    let denominator = a * e - b * b;
+    let mut s = if denominator > 1e-12 * a * e {
+        ((b * f - c * e) / denominator).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let mut t = (b * s + f) / e;
+    if t < 0.0 {
+        t = 0.0;
+        s = (-c / a).clamp(0.0, 1.0);
+    } else if t > 1.0 {
+        t = 1.0;
+        s = ((b - c) / a).clamp(0.0, 1.0);
+    }
+    (s1[0] + d1 * s, s2[0] + d2 * t)
 }
 
 /// A clipped point of an incident face, in the reference body's frame.
@@ -204,6 +386,7 @@ fn clip_against_reference(
     incident: &ConvexShape,
     pose: &Isometry3<f64>,
     alert: f64,
+    floor: f64,
 ) -> Vec<Clipped> {
     let pr = reference.polyhedron();
     let rf = &pr.faces()[face];
@@ -287,11 +470,18 @@ fn clip_against_reference(
             polygon.push((q, id));
         }
     }
+    // A point below the reference plane is a contact only if it is inside the reference
+    // body (else it is beyond another face, and the touching features are elsewhere: an
+    // edge crossing or the other reference face).
+    let tolerance = 1e-9 * reference.bounding_radius();
     polygon
         .into_iter()
         .filter_map(|(p, id)| {
             let gap = normal.dot(&(p - r0));
-            (gap <= alert).then(|| Clipped {
+            let kept = gap <= alert
+                && gap >= floor
+                && (gap >= -tolerance || reference.contains(&p, tolerance));
+            kept.then(|| Clipped {
                 on_reference: p - normal * gap,
                 on_incident: p,
                 gap,
@@ -313,39 +503,38 @@ struct FaceSeparation {
 /// Every hull vertex of `b` within `alert` of the half-space's plane is a contact point
 /// (parry's half-space manifold keeps only the support face's first vertices, which may
 /// miss the deepest vertex of a tilted stone).
-fn halfspace_manifold(
+fn halfspace_contacts(
     pos12: &Isometry3<f64>,
     normal: &Unit<Vector3<f64>>,
     b: &ConvexShape,
     alert: f64,
-    manifold: &mut ContactManifold<(), ()>,
+    out: &mut Vec<LocalContact>,
 ) {
-    let normal_b = pos12.inverse_transform_unit_vector(normal);
     for (index, p) in b.points().iter().enumerate() {
         let on_b = pos12 * p;
         let distance = normal.dot(&on_b.coords);
         if distance <= alert {
-            manifold.points.push(TrackedContact::new(
-                on_b - **normal * distance,
-                *p,
-                PackedFeatureId::face(0),
-                PackedFeatureId::vertex(index as u32),
-                distance,
-            ));
+            out.push(LocalContact {
+                on_a: on_b - **normal * distance,
+                on_b,
+                normal: **normal,
+                features: [
+                    PackedFeatureId::face(0).0,
+                    PackedFeatureId::vertex(index as u32).0,
+                ],
+                gap: distance,
+            });
         }
     }
-    manifold.local_n1 = **normal;
-    manifold.local_n2 = -*normal_b;
 }
 
-/// The largest separation of `b` from a face plane of `a`, or of `a` from a face plane
-/// of `b`, and the corresponding normal from a to b (a's frame).
-fn face_separation(
+/// The largest separation of `b` from a face plane of `a`, and of `a` from a face plane
+/// of `b`, with the corresponding normals from a to b (a's frame).
+fn face_separations(
     pos12: &Isometry3<f64>,
     a: &ConvexShape,
     b: &ConvexShape,
-    tie: f64,
-) -> FaceSeparation {
+) -> [FaceSeparation; 2] {
     let mut best = FaceSeparation {
         separation: f64::NEG_INFINITY,
         normal: Vector3::z_axis(),
@@ -368,6 +557,12 @@ fn face_separation(
             };
         }
     }
+    let mut best_b = FaceSeparation {
+        separation: f64::NEG_INFINITY,
+        normal: Vector3::z_axis(),
+        on_a: false,
+        face: 0,
+    };
     let pb = b.polyhedron();
     for (k, face) in pb.faces().iter().enumerate() {
         let n = pos12 * face.normal;
@@ -375,10 +570,8 @@ fn face_separation(
             * pb.points()[pb.vertices_adj_to_face()[face.first_vertex_or_edge as usize] as usize];
         let support = a.local_support_point(&-*n);
         let separation = n.dot(&(support - on_face));
-        // Ties (within `tie`) go to a's faces, so that two coplanar faces in contact
-        // keep one reference from step to step (and their contact ids).
-        if separation > best.separation + tie {
-            best = FaceSeparation {
+        if separation > best_b.separation {
+            best_b = FaceSeparation {
                 separation,
                 normal: -n,
                 on_a: false,
@@ -386,7 +579,7 @@ fn face_separation(
             };
         }
     }
-    best
+    [best, best_b]
 }
 
 type Side<'a> = (usize, &'a Collider, &'a Isometry3<f64>);
@@ -400,36 +593,28 @@ fn pair_contacts(first: Side, second: Side, alert: f64, out: &mut Vec<ContactPoi
         _ => (first, second),
     };
     let pos12 = a.2.inverse() * b.2;
-    let mut manifold = ContactManifold::<(), ()>::new();
     let Collider::Convex(shape_b) = b.1 else {
         return;
     };
+    let mut local = Vec::new();
     let size = match a.1 {
         Collider::Convex(shape_a) => {
             let size = shape_a.bounding_radius().max(shape_b.bounding_radius());
-            convex_convex_manifold(&pos12, shape_a, shape_b, alert, size, &mut manifold);
+            convex_convex_contacts(&pos12, shape_a, shape_b, alert, size, &mut local);
             size
         }
         Collider::HalfSpace(normal) => {
-            halfspace_manifold(&pos12, normal, shape_b, alert, &mut manifold);
+            halfspace_contacts(&pos12, normal, shape_b, alert, &mut local);
             shape_b.bounding_radius()
         }
     };
-    let known = manifold
-        .points
-        .iter()
-        .filter(|p| p.dist <= alert && p.fid1 != PackedFeatureId::UNKNOWN)
-        .count();
-    let normal = a.2.rotation * manifold.local_n1;
     let merge = 1e-6 * size;
     let start = out.len();
-    for p in &manifold.points {
-        if p.dist > alert || (known > 0 && p.fid1 == PackedFeatureId::UNKNOWN) {
+    for p in &local {
+        if p.gap > alert {
             continue;
         }
-        let on_a = a.2 * p.local_p1;
-        let on_b = b.2 * p.local_p2;
-        let point = Point3::from(0.5 * (on_a.coords + on_b.coords));
+        let point = a.2 * Point3::from(0.5 * (p.on_a.coords + p.on_b.coords));
         if out[start..]
             .iter()
             .any(|q| (q.point - point).norm() < merge)
@@ -440,12 +625,12 @@ fn pair_contacts(first: Side, second: Side, alert: f64, out: &mut Vec<ContactPoi
             key: ContactKey {
                 body_a: a.0 as u32,
                 body_b: b.0 as u32,
-                feature_a: p.fid1.0,
-                feature_b: p.fid2.0,
+                feature_a: p.features[0],
+                feature_b: p.features[1],
             },
             point,
-            normal,
-            gap: p.dist,
+            normal: a.2.rotation * p.normal,
+            gap: p.gap,
         });
     }
 }
@@ -489,6 +674,187 @@ mod tests {
             Isometry3::translation(0.0, 0.0, 0.502),
         ];
         assert!(detect(&[&floor, &block], &far, &[false, true], 1e-3).is_empty());
+    }
+
+    /// A unit cube standing on its edge along x (rotated 45° about x), and above it one
+    /// standing on its edge along y (45° about y), its centre at `(dx, 0, 2 h + gap)`
+    /// with h = √2/2: the two edges cross at 90° at `(dx, 0, h)`.
+    fn crossed_edges(dx: f64, gap: f64) -> Vec<ContactPoint> {
+        let lower = cube(0.5);
+        let upper = cube(0.5);
+        let h = std::f64::consts::FRAC_1_SQRT_2;
+        let quarter = std::f64::consts::FRAC_PI_4;
+        let poses = [
+            Isometry3::from_parts(
+                Translation3::identity(),
+                UnitQuaternion::from_axis_angle(&Vector3::x_axis(), quarter),
+            ),
+            Isometry3::from_parts(
+                Translation3::new(dx, 0.0, 2.0 * h + gap),
+                UnitQuaternion::from_axis_angle(&Vector3::y_axis(), quarter),
+            ),
+        ];
+        detect(&[&lower, &upper], &poses, &[true, true], 1e-2)
+    }
+
+    #[test]
+    fn crossed_edges_touch_at_one_point_along_their_common_normal() {
+        let h = std::f64::consts::FRAC_1_SQRT_2;
+        for (dx, gap) in [(0.0, 1e-4), (0.2, 1e-4), (0.2, -2e-3), (-0.3, 0.0)] {
+            let contacts = crossed_edges(dx, gap);
+            assert_eq!(contacts.len(), 1, "dx {dx}, gap {gap}: {contacts:?}");
+            let c = &contacts[0];
+            assert!((c.gap - gap).abs() < 1e-12, "{c:?}");
+            assert!((c.normal - Vector3::z()).norm() < 1e-12, "{c:?}");
+            let expect = Point3::new(dx, 0.0, h + 0.5 * gap);
+            assert!((c.point - expect).norm() < 1e-12, "{c:?}");
+            // Both features are edges (a persistent key while the edges cross).
+            assert_eq!(c.key.feature_a >> 30, 2, "{:x}", c.key.feature_a);
+            assert_eq!(c.key.feature_b >> 30, 2, "{:x}", c.key.feature_b);
+        }
+        // The edges pass each other (the upper one beyond the lower edge's end): no
+        // crossing, and the cubes are 0.1 apart: nothing within the alert distance.
+        assert!(crossed_edges(1.1, 0.0).is_empty());
+    }
+
+    #[test]
+    fn an_edge_across_a_roof_ridge_touches_the_ridge_line() {
+        // A cube standing on its edge along y, lying across a roof (a 1 × 0.3 box with
+        // a ridge line along x at y = 0, 0.05 above its eaves): the upper edge crosses
+        // the ridge edge, a tumbling stone across another's ridge. The ridge crossing
+        // is an edge–edge point with normal +z at the gap; the roof faces see the edge
+        // at their true distances (the edge rises away from them).
+        let mut points = Vec::new();
+        for k in 0..8 {
+            points.push(Point3::new(
+                if k & 1 == 0 { -0.5 } else { 0.5 },
+                if k & 2 == 0 { -0.15 } else { 0.15 },
+                if k & 4 == 0 { -0.5 } else { 0.0 },
+            ));
+        }
+        points.push(Point3::new(-0.5, 0.0, 0.05));
+        points.push(Point3::new(0.5, 0.0, 0.05));
+        let roof = Collider::Convex(ConvexShape::from_points(&points).unwrap());
+        let upper = cube(0.5);
+        let h = std::f64::consts::FRAC_1_SQRT_2;
+        for gap in [1e-4, -1e-4] {
+            let poses = [
+                Isometry3::identity(),
+                Isometry3::from_parts(
+                    Translation3::new(0.1, 0.0, 0.05 + h + gap),
+                    UnitQuaternion::from_axis_angle(
+                        &Vector3::y_axis(),
+                        std::f64::consts::FRAC_PI_4,
+                    ),
+                ),
+            ];
+            let contacts = detect(&[&roof, &upper], &poses, &[true, true], 1e-2);
+            let ridge: Vec<_> = contacts
+                .iter()
+                .filter(|c| c.key.feature_a >> 30 == 2 && c.key.feature_b >> 30 == 2)
+                .collect();
+            assert_eq!(ridge.len(), 1, "{contacts:?}");
+            assert!((ridge[0].gap - gap).abs() < 1e-12, "{contacts:?}");
+            assert!((ridge[0].normal - Vector3::z()).norm() < 1e-12);
+            assert!((ridge[0].point - Point3::new(0.1, 0.0, 0.05 + 0.5 * gap)).norm() < 1e-12);
+            // (Overlapping, the edge's point just past the ridge is as deep below the
+            // roof face: 1e-4 / cos(18.4°).)
+            let least = if gap > 0.0 { gap } else { 1.06 * gap };
+            assert!(
+                contacts.iter().all(|c| c.gap >= least - 1e-12),
+                "{contacts:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn random_hulls_report_their_closest_or_deepest_point() {
+        // Random stone-like hulls (20 points on an ellipsoid) at random orientations,
+        // moved along a random direction until GJK/EPA (parry) gives a signed distance
+        // d: the detected points must include one at least as close as d (a contact is
+        // never missed, nor reported farther than it is), and when the hulls are apart
+        // no point may claim an overlap. parry's own manifold clipped the support
+        // features along GJK's normal and could report only points gaps above d.
+        use parry3d_f64::query::details::contact_support_map_support_map;
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let mut random = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut unit = || {
+            let (z, phi): (f64, f64) = (2.0 * random() - 1.0, std::f64::consts::TAU * random());
+            let r = (1.0 - z * z).sqrt();
+            Vector3::new(r * phi.cos(), r * phi.sin(), z)
+        };
+        let mut checked = 0;
+        for _ in 0..200 {
+            let hull = |unit: &mut dyn FnMut() -> Vector3<f64>| {
+                let points: Vec<Point3<f64>> = (0..20)
+                    .map(|_| {
+                        let u = unit();
+                        Point3::new(0.03 * u.x, 0.02 * u.y, 0.015 * u.z)
+                    })
+                    .collect();
+                ConvexShape::from_points(&points).unwrap()
+            };
+            let (a, b) = (hull(&mut unit), hull(&mut unit));
+            let (ra, rb) = (
+                UnitQuaternion::from_scaled_axis(unit() * 3.0),
+                UnitQuaternion::from_scaled_axis(unit() * 3.0),
+            );
+            let direction = unit();
+            let target = [-1e-3, -1e-5, 1e-5, 1e-3][checked % 4];
+            let signed = |t: f64| {
+                let pos12 = Isometry3::from_parts(Translation3::identity(), ra).inverse()
+                    * Isometry3::from_parts(Translation3::from(direction * t), rb);
+                contact_support_map_support_map(&pos12, &a, &b, 1.0).map(|c| c.dist)
+            };
+            // Bisection on the offset for the target signed distance.
+            let (mut lo, mut hi) = (0.0, 0.1);
+            for _ in 0..100 {
+                let mid = 0.5 * (lo + hi);
+                match signed(mid) {
+                    Some(d) if d < target => lo = mid,
+                    _ => hi = mid,
+                }
+            }
+            let Some(d) = signed(hi) else { continue };
+            let poses = [
+                Isometry3::from_parts(Translation3::identity(), ra),
+                Isometry3::from_parts(Translation3::from(direction * hi), rb),
+            ];
+            let (ca, cb) = (Collider::Convex(a.clone()), Collider::Convex(b.clone()));
+            let contacts = detect(&[&ca, &cb], &poses, &[true, true], 2e-3);
+            let least = contacts.iter().map(|c| c.gap).fold(f64::INFINITY, f64::min);
+            assert!(least <= d + 1e-9, "d {d}, least gap {least}: {contacts:?}");
+            if d > 0.0 {
+                assert!(least >= -1e-9, "apart by {d}, reported {least}");
+            }
+            checked += 1;
+        }
+        assert!(checked > 150, "{checked}");
+    }
+
+    #[test]
+    fn corner_to_corner_cubes_are_not_reported_as_overlapping() {
+        // Two axis-aligned unit cubes offset diagonally by 1 + d in x and y: every face
+        // normal separates them by d, their closest features are two parallel edges.
+        // The pair is kept (one point at gap d), and no point is below a face plane.
+        let d = 1e-3;
+        let lower = cube(0.5);
+        let upper = cube(0.5);
+        let poses = [
+            Isometry3::identity(),
+            Isometry3::translation(1.0 + d, 1.0 + d, 0.3),
+        ];
+        let contacts = detect(&[&lower, &upper], &poses, &[true, true], 1e-2);
+        assert!(!contacts.is_empty());
+        assert!(
+            contacts.iter().all(|c| (c.gap - d).abs() < 1e-12),
+            "{contacts:?}"
+        );
     }
 
     #[test]

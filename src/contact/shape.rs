@@ -15,12 +15,86 @@ use parry3d_f64::shape::{
 #[derive(Debug, Clone)]
 pub struct ConvexShape {
     polyhedron: ConvexPolyhedron,
+    /// Edges and face planes (boxed: keeps [`Collider`]'s variants close in size).
+    derived: Box<Derived>,
+    radius: f64,
+}
+
+#[derive(Debug, Clone)]
+struct Derived {
+    edges: Vec<HullEdge>,
+    /// Face planes: outward normal and offset (n·x ≤ offset inside).
+    planes: Vec<(Vector3<f64>, f64)>,
+}
+
+/// An edge of the hull between two of its (merged, polygonal) faces, for the
+/// edge–edge axes of the separating-axis test.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HullEdge {
+    /// parry's edge id (its feature code is `PackedFeatureId::edge(id)`).
+    pub id: u32,
+    /// The two end points (local).
+    pub ends: [Point3<f64>; 2],
+    /// The outward normals of the two faces that meet at the edge.
+    pub normals: [Vector3<f64>; 2],
 }
 
 impl ConvexShape {
     /// The convex hull of `points` (local coordinates); `None` if degenerate.
     pub fn from_points(points: &[Point3<f64>]) -> Option<Self> {
-        ConvexPolyhedron::from_convex_hull(points).map(|polyhedron| ConvexShape { polyhedron })
+        let polyhedron = ConvexPolyhedron::from_convex_hull(points)?;
+        let faces = polyhedron.faces();
+        let vertices = polyhedron.points();
+        // parry keeps the triangulation's interior edges of merged coplanar faces (both
+        // sides on one face): only the edges between two distinct faces are hull edges.
+        let edges = polyhedron
+            .edges()
+            .iter()
+            .enumerate()
+            .filter_map(|(id, e)| {
+                let (f0, f1) = (e.faces[0] as usize, e.faces[1] as usize);
+                if f0 == f1 || f0 >= faces.len() || f1 >= faces.len() {
+                    return None;
+                }
+                let (n0, n1) = (*faces[f0].normal, *faces[f1].normal);
+                (n0.cross(&n1).norm() > 1e-9).then(|| HullEdge {
+                    id: id as u32,
+                    ends: [
+                        vertices[e.vertices[0] as usize],
+                        vertices[e.vertices[1] as usize],
+                    ],
+                    normals: [n0, n1],
+                })
+            })
+            .collect();
+        let radius = vertices.iter().map(|p| p.coords.norm()).fold(0.0, f64::max);
+        let planes = faces
+            .iter()
+            .map(|f| {
+                let on = vertices
+                    [polyhedron.vertices_adj_to_face()[f.first_vertex_or_edge as usize] as usize];
+                (*f.normal, f.normal.dot(&on.coords))
+            })
+            .collect();
+        Some(ConvexShape {
+            polyhedron,
+            derived: Box::new(Derived { edges, planes }),
+            radius,
+        })
+    }
+
+    /// Whether `p` (local) is inside the hull or within `tolerance` of it (every face
+    /// plane).
+    pub fn contains(&self, p: &Point3<f64>, tolerance: f64) -> bool {
+        self.derived
+            .planes
+            .iter()
+            .all(|(n, offset)| n.dot(&p.coords) <= offset + tolerance)
+    }
+
+    /// The hull's edges between distinct faces.
+    pub fn edges(&self) -> &[HullEdge] {
+        &self.derived.edges
     }
 
     /// The underlying parry polyhedron.
@@ -35,10 +109,7 @@ impl ConvexShape {
 
     /// The radius of the smallest origin-centred sphere holding the shape.
     pub fn bounding_radius(&self) -> f64 {
-        self.points()
-            .iter()
-            .map(|p| p.coords.norm())
-            .fold(0.0, f64::max)
+        self.radius
     }
 }
 
