@@ -222,11 +222,7 @@ fn driven_box_and_tine_push_blocks_at_their_speed_against_floor_friction() {
             "convex = [\"paddle\"]",
             "key driven[0].convex",
         ),
-        (
-            "tine.msh\"",
-            "no_tine.msh\"",
-            "key driven[0].mesh",
-        ),
+        ("tine.msh\"", "no_tine.msh\"", "key driven[0].mesh"),
         (
             "pushed = [\"block\", \"small_block\"]",
             "pushed = [\"block\"]",

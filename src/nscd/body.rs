@@ -147,10 +147,8 @@ impl BodyShape {
 /// A prescribed motion: a constant velocity, plus a sinusoidal oscillation, plus a
 /// piecewise-linear velocity table (each part optional).
 ///
-/// The table is shared for the whole run through a `'static` reference (the scene
-/// leaks it once, [`Prescribed::with_table`]) so that `Prescribed` and [`Motion`] stay
-/// `Copy`: the step matches `body.motion` by value.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+/// The table is shared (reference-counted) by the pieces of one driven body.
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct Prescribed {
     /// Constant translational velocity (m/s).
     pub velocity: Vector3<f64>,
@@ -159,21 +157,23 @@ pub struct Prescribed {
     /// Frequency of the oscillation (Hz).
     pub frequency: f64,
     /// A piecewise-linear velocity added to the rest (m/s).
-    pub table: Option<&'static VelocityTable>,
+    pub table: Option<Arc<VelocityTable>>,
 }
 
 impl Prescribed {
-    /// `self` with the velocity table `table` (leaked: it lives as long as the process,
-    /// which is the run).
+    /// `self` with the velocity table `table`.
     pub fn with_table(mut self, table: VelocityTable) -> Self {
-        self.table = Some(Box::leak(Box::new(table)));
+        self.table = Some(Arc::new(table));
         self
     }
 
     /// The velocity at time `t`: `v + 2πf A cos(2πf t) + table(t)`.
     pub fn velocity_at(&self, t: f64) -> Vector3<f64> {
         let omega = std::f64::consts::TAU * self.frequency;
-        let table = self.table.map_or(Vector3::zeros(), |v| v.velocity_at(t));
+        let table = self
+            .table
+            .as_ref()
+            .map_or(Vector3::zeros(), |v| v.velocity_at(t));
         self.velocity + self.amplitude * omega * (omega * t).cos() + table
     }
 
@@ -183,6 +183,7 @@ impl Prescribed {
         let omega = std::f64::consts::TAU * self.frequency;
         let table = self
             .table
+            .as_ref()
             .map_or(Vector3::zeros(), |v| v.displacement(t0, t1));
         self.velocity * (t1 - t0)
             + self.amplitude * ((omega * t1).sin() - (omega * t0).sin())
@@ -198,7 +199,7 @@ impl Prescribed {
 }
 
 /// How a body moves.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum Motion {
     /// By the dynamics (gravity and contacts).
     Dynamic,

@@ -254,7 +254,7 @@ pub fn run(ctx: &RunContext) -> Result<()> {
     // on step boundaries; O(h²) per unit time otherwise).
     let mut driven_error: Option<f64> = None;
     for (k, body) in bodies.iter().enumerate() {
-        if let Motion::Driven(prescribed) = body.motion {
+        if let Motion::Driven(prescribed) = &body.motion {
             let expected = driven_start[k] + prescribed.displacement(0.0, time);
             let error = (body.position - expected).norm();
             driven_error = Some(driven_error.unwrap_or(0.0).max(error));

@@ -989,7 +989,7 @@ impl NscdScene {
                     Arc::new(principal.shape),
                     self.material_index(&d.material),
                     principal.pose,
-                    motion,
+                    motion.clone(),
                 ));
             }
             driven.push(DrivenBody {
@@ -1000,7 +1000,7 @@ impl NscdScene {
         // A driven body starts at its prescribed velocity: the step's position update
         // uses the velocity at the start of the step.
         for body in &mut bodies {
-            if let Motion::Driven(prescribed) = body.motion {
+            if let Motion::Driven(prescribed) = &body.motion {
                 body.velocity = prescribed.velocity_at(0.0);
             }
         }
@@ -1280,7 +1280,7 @@ frequency = "50 Hz"
         assert!((extent_y - 0.1).abs() < 1e-12, "{extent_y}");
         assert!(pusher.mass.is_infinite() && pusher.inverse_mass() == 0.0);
         // A table motion starts at its first value, interpolates, holds.
-        let Motion::Driven(p) = pusher.motion else {
+        let Motion::Driven(p) = &pusher.motion else {
             panic!("{:?}", pusher.motion)
         };
         assert_eq!(pusher.velocity, Vector3::new(0.1, 0.0, 0.0));
@@ -1293,7 +1293,7 @@ frequency = "50 Hz"
         let cube = &model.bodies[3];
         assert!((cube.shape.volume - 1e-3).abs() < 1e-15);
         assert!((cube.position - Vector3::new(1.05, 0.05, 0.05)).norm() < 1e-12);
-        let Motion::Driven(p) = cube.motion else {
+        let Motion::Driven(p) = &cube.motion else {
             panic!()
         };
         let omega = std::f64::consts::TAU * 50.0;
@@ -1401,7 +1401,7 @@ frequency = "50 Hz"
         );
         std::fs::write(&csv, "0,0,0,0\n0.1,1,0,0\n").unwrap();
         let model = build(&with_box(&file)).unwrap();
-        let Motion::Driven(p) = model.bodies[1].motion else {
+        let Motion::Driven(p) = &model.bodies[1].motion else {
             panic!()
         };
         assert!((p.velocity_at(0.05).x - 0.5).abs() < 1e-15);

@@ -211,7 +211,7 @@ impl MoreauJean {
         for body in bodies.iter_mut() {
             start_velocity.push(body.velocity);
             start_angular.push(body.angular_velocity_world());
-            match body.motion {
+            match &body.motion {
                 Motion::Dynamic => {
                     let free = body.velocity + dt * gravity;
                     let w_free = free_rotation(body, dt);
@@ -374,10 +374,9 @@ fn free_rotation(body: &Body, dt: f64) -> Vector3<f64> {
 fn detect_into(detector: &mut Detector, bodies: &[Body], out: &mut Vec<ContactPoint>) {
     let colliders: Vec<&Collider> = bodies.iter().map(|b| &b.shape.collider).collect();
     let poses: Vec<Isometry3<f64>> = bodies.iter().map(Body::pose).collect();
-    let movable: Vec<bool> = bodies
-        .iter()
-        .map(|b| !matches!(b.motion, Motion::Static))
-        .collect();
+    // Pairs without a moving grain (driven against fixed, two pieces of one tool) carry
+    // no impulse that could change anything: skipped.
+    let movable: Vec<bool> = bodies.iter().map(Body::is_dynamic).collect();
     detector.detect(&colliders, &poses, &movable, out);
 }
 
