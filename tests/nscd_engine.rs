@@ -34,6 +34,16 @@ fn run_quick(scene: &str, out: &Path) -> Value {
     summary["figures"].clone()
 }
 
+/// Runs `ballast-nscd SCENE --out OUT` and returns what it did (for bad scenes).
+fn run_scene(scene: &Path, out: &Path) -> std::process::Output {
+    Command::new(NSCD)
+        .arg(scene)
+        .arg("--out")
+        .arg(out)
+        .output()
+        .unwrap()
+}
+
 fn figure(figures: &Value, name: &str) -> f64 {
     figures[name]
         .as_f64()
@@ -144,12 +154,7 @@ fn bad_scenes_are_one_line_errors_naming_file_and_key() {
         ),
     ] {
         std::fs::write(&scene, base.replacen(from, to, 1)).unwrap();
-        let output = Command::new(NSCD)
-            .arg(&scene)
-            .arg("--out")
-            .arg(dir.path().join("out"))
-            .output()
-            .unwrap();
+        let output = run_scene(&scene, &dir.path().join("out"));
         assert_eq!(output.status.code(), Some(1));
         let stderr = String::from_utf8_lossy(&output.stderr);
         assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
@@ -231,12 +236,7 @@ fn driven_box_and_tine_push_blocks_at_their_speed_against_floor_friction() {
     ] {
         assert!(base.contains(from), "{from}");
         std::fs::write(&scene, base.replacen(from, to, 1)).unwrap();
-        let output = Command::new(NSCD)
-            .arg(&scene)
-            .arg("--out")
-            .arg(dir.path().join("out"))
-            .output()
-            .unwrap();
+        let output = run_scene(&scene, &dir.path().join("out"));
         assert_eq!(output.status.code(), Some(1), "{key}");
         let stderr = String::from_utf8_lossy(&output.stderr);
         assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
