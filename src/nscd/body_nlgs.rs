@@ -52,42 +52,57 @@ pub struct BodyInverses<'a> {
     pub inverse_inertia: &'a [Matrix3<f64>],
 }
 
+/// One contact's data for the sweep, as plain f64 arrays (one cache-friendly record; the
+/// local solver's cold data is kept apart in [`LocalCoulomb`]).
 struct Prepared {
     bodies: [usize; 2],
     moves: [bool; 2],
-    frame: [Vector3<f64>; 3],
-    /// A_s columns (d × f_k).
-    arm_cross: [[Vector3<f64>; 3]; 2],
-    /// I⁻¹ A_s columns.
-    spin: [[Vector3<f64>; 3]; 2],
+    /// Rows n, t, s of the frame.
+    frame: [[f64; 3]; 3],
+    /// A_s columns (d × f_k), as rows k.
+    arm_cross: [[[f64; 3]; 3]; 2],
+    /// ± I⁻¹ A_s columns (negated for the first body, which receives −Δr).
+    spin: [[[f64; 3]; 3]; 2],
+    /// ± 1/m (negated for the first body).
     inverse_mass: [f64; 2],
     shift: f64,
     mu: f64,
     w: [f64; 9],
-    local: LocalCoulomb,
+}
+
+#[inline(always)]
+fn dot(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    // nalgebra's order for 3-vectors: (a₀b₀ + a₁b₁) + a₂b₂.
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
 impl Prepared {
     fn new(row: &ContactRow, inv: &BodyInverses) -> Self {
         let bodies = [row.bodies[0] as usize, row.bodies[1] as usize];
-        let mut arm_cross = [[Vector3::zeros(); 3]; 2];
-        let mut spin = [[Vector3::zeros(); 3]; 2];
+        let mut arm_cross = [[[0.0; 3]; 3]; 2];
+        let mut spin = [[[0.0; 3]; 3]; 2];
         let mut inverse_mass = [0.0; 2];
         let mut moves = [false; 2];
         let mut w = [0.0; 9];
         for s in 0..2 {
             let b = bodies[s];
-            inverse_mass[s] = inv.inverse_mass[b];
+            let im = inv.inverse_mass[b];
             let ii = &inv.inverse_inertia[b];
-            moves[s] = inverse_mass[s] > 0.0;
+            moves[s] = im > 0.0;
+            let sign = if s == 0 { -1.0 } else { 1.0 };
+            inverse_mass[s] = sign * im;
+            let mut cross = [Vector3::zeros(); 3];
+            let mut turn = [Vector3::zeros(); 3];
             for k in 0..3 {
-                arm_cross[s][k] = row.arms[s].cross(&row.frame[k]);
-                spin[s][k] = ii * arm_cross[s][k];
+                cross[k] = row.arms[s].cross(&row.frame[k]);
+                turn[k] = ii * cross[k];
+                arm_cross[s][k] = cross[k].into();
+                spin[s][k] = (sign * turn[k]).into();
             }
             for k in 0..3 {
                 for l in 0..3 {
-                    let linear = if k == l { inverse_mass[s] } else { 0.0 };
-                    w[3 * k + l] += linear + arm_cross[s][k].dot(&spin[s][l]);
+                    let linear = if k == l { im } else { 0.0 };
+                    w[3 * k + l] += linear + cross[k].dot(&turn[l]);
                 }
             }
         }
@@ -100,44 +115,57 @@ impl Prepared {
         Prepared {
             bodies,
             moves,
-            frame: row.frame,
+            frame: [
+                row.frame[0].into(),
+                row.frame[1].into(),
+                row.frame[2].into(),
+            ],
             arm_cross,
             spin,
             inverse_mass,
             shift: row.shift,
             mu: row.mu,
             w,
-            local: LocalCoulomb::new(&w, row.mu),
         }
     }
 
-    /// The relative velocity (local, gap shift included).
-    #[inline]
-    fn velocity(&self, v: &[Vector3<f64>], omega: &[Vector3<f64>]) -> [f64; 3] {
-        let (i, j) = (self.bodies[0], self.bodies[1]);
-        let dv = v[j] - v[i];
+    /// The relative velocity (local, gap shift included) from the bodies' states
+    /// `[v, ω]`.
+    #[inline(always)]
+    fn velocity(&self, state: &[[f64; 6]]) -> [f64; 3] {
+        let (si, sj) = (&state[self.bodies[0]], &state[self.bodies[1]]);
+        let dv = [sj[0] - si[0], sj[1] - si[1], sj[2] - si[2]];
+        let wi = [si[3], si[4], si[5]];
+        let wj = [sj[3], sj[4], sj[5]];
         let mut u = [0.0; 3];
         for (k, uk) in u.iter_mut().enumerate() {
-            *uk = self.frame[k].dot(&dv) + self.arm_cross[1][k].dot(&omega[j])
-                - self.arm_cross[0][k].dot(&omega[i]);
+            *uk = dot(&self.frame[k], &dv) + dot(&self.arm_cross[1][k], &wj)
+                - dot(&self.arm_cross[0][k], &wi);
         }
         u[0] += self.shift;
         u
     }
 
     /// Applies the impulse change `d` to the two bodies.
-    #[inline]
-    fn apply(&self, d: [f64; 3], v: &mut [Vector3<f64>], omega: &mut [Vector3<f64>]) {
-        let world = self.frame[0] * d[0] + self.frame[1] * d[1] + self.frame[2] * d[2];
+    #[inline(always)]
+    fn apply(&self, d: [f64; 3], state: &mut [[f64; 6]]) {
+        let f = &self.frame;
+        let world = [
+            f[0][0] * d[0] + f[1][0] * d[1] + f[2][0] * d[2],
+            f[0][1] * d[0] + f[1][1] * d[1] + f[2][1] * d[2],
+            f[0][2] * d[0] + f[1][2] * d[1] + f[2][2] * d[2],
+        ];
         for s in 0..2 {
             if !self.moves[s] {
                 continue;
             }
-            let sign = if s == 0 { -1.0 } else { 1.0 };
-            let b = self.bodies[s];
-            v[b] += (sign * self.inverse_mass[s]) * world;
-            omega[b] +=
-                sign * (self.spin[s][0] * d[0] + self.spin[s][1] * d[1] + self.spin[s][2] * d[2]);
+            let m = self.inverse_mass[s];
+            let sp = &self.spin[s];
+            let b = &mut state[self.bodies[s]];
+            for x in 0..3 {
+                b[x] += m * world[x];
+                b[3 + x] += sp[0][x] * d[0] + sp[1][x] * d[1] + sp[2][x] * d[2];
+            }
         }
     }
 }
@@ -165,14 +193,26 @@ pub fn solve(
     let start = Instant::now();
     assert_eq!(rows.len(), impulse.len(), "one impulse per contact");
     let prepared: Vec<Prepared> = rows.iter().map(|r| Prepared::new(r, inverses)).collect();
-    let free: Vec<[f64; 3]> = prepared
+    // The local solvers (W_aa, its inverse, µ): read only by contacts that reach them.
+    let locals: Vec<LocalCoulomb> = prepared
         .iter()
-        .map(|c| c.velocity(velocity, angular_velocity))
+        .map(|c| LocalCoulomb::new(&c.w, c.mu))
         .collect();
-    let free_norm = free.iter().flatten().map(|x| x * x).sum::<f64>().sqrt();
+    // The bodies' velocities [v, ω], one record per body, for the sweeps.
+    let mut state: Vec<[f64; 6]> = velocity
+        .iter()
+        .zip(angular_velocity.iter())
+        .map(|(v, w)| [v.x, v.y, v.z, w.x, w.y, w.z])
+        .collect();
+    let free_norm = prepared
+        .iter()
+        .flat_map(|c| c.velocity(&state))
+        .map(|x| x * x)
+        .sum::<f64>()
+        .sqrt();
     for (c, r) in prepared.iter().zip(impulse.iter()) {
         if *r != [0.0; 3] {
-            c.apply(*r, velocity, angular_velocity);
+            c.apply(*r, &mut state);
         }
     }
     let mut directions = vec![[0.0f64; 2]; rows.len()];
@@ -185,10 +225,6 @@ pub fn solve(
         local_fallbacks: 0,
         returned_sweep: 0,
     };
-    if rows.is_empty() {
-        report.solve_time = start.elapsed();
-        return report;
-    }
     let (tolerance, max_sweeps) = match options.stopping {
         Stopping::Tolerance {
             tolerance,
@@ -196,64 +232,86 @@ pub fn solve(
         } => (tolerance, max_sweeps),
         Stopping::Sweeps(n) => (f64::NEG_INFINITY, n),
     };
-    let measure = |impulse: &[[f64; 3]], v: &[Vector3<f64>], w: &[Vector3<f64>]| {
-        let (mut sum, mut r_norm, mut u_norm) = (0.0, 0.0, 0.0);
-        for (c, r) in prepared.iter().zip(impulse) {
-            let u = c.velocity(v, w);
-            let scaled = [c.w[0] * r[0], c.w[0] * r[1], c.w[0] * r[2]];
-            sum += coulomb_residual_squared(scaled, u, c.mu);
-            r_norm += scaled.iter().map(|x| x * x).sum::<f64>();
-            u_norm += u.iter().map(|x| x * x).sum::<f64>();
-        }
-        let scale = free_norm.max(r_norm.sqrt()).max(u_norm.sqrt());
-        if scale > f64::EPSILON {
-            sum.sqrt() / scale
-        } else {
-            sum.sqrt()
-        }
-    };
-    report.error = f64::INFINITY;
-    while report.iterations < max_sweeps {
-        let (mut change, mut size) = (0.0, 0.0);
-        for (a, c) in prepared.iter().enumerate() {
-            let u = c.velocity(velocity, angular_velocity);
-            let old = impulse[a];
-            let w = &c.w;
-            let q = [
-                u[0] - (w[0] * old[0] + w[1] * old[1] + w[2] * old[2]),
-                u[1] - (w[3] * old[0] + w[4] * old[1] + w[5] * old[2]),
-                u[2] - (w[6] * old[0] + w[7] * old[1] + w[8] * old[2]),
-            ];
-            let (r, status) = c.local.solve(q, &mut directions[a]);
-            if status == ContactStatus::Fallback {
-                report.local_fallbacks += 1;
+    if !rows.is_empty() {
+        let measure = |impulse: &[[f64; 3]], state: &[[f64; 6]]| {
+            let (mut sum, mut r_norm, mut u_norm) = (0.0, 0.0, 0.0);
+            for (c, r) in prepared.iter().zip(impulse) {
+                let u = c.velocity(state);
+                let scaled = [c.w[0] * r[0], c.w[0] * r[1], c.w[0] * r[2]];
+                sum += coulomb_residual_squared(scaled, u, c.mu);
+                r_norm += scaled[0] * scaled[0] + scaled[1] * scaled[1] + scaled[2] * scaled[2];
+                u_norm += u[0] * u[0] + u[1] * u[1] + u[2] * u[2];
             }
-            let d = [r[0] - old[0], r[1] - old[1], r[2] - old[2]];
-            if d != [0.0; 3] {
-                c.apply(d, velocity, angular_velocity);
+            let scale = free_norm.max(r_norm.sqrt()).max(u_norm.sqrt());
+            if scale > f64::EPSILON {
+                sum.sqrt() / scale
+            } else {
+                sum.sqrt()
             }
-            let scale = w[0] * w[0];
-            change += scale * (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-            size += scale * (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]);
-            impulse[a] = r;
+        };
+        report.error = f64::INFINITY;
+        while report.iterations < max_sweeps {
+            let (mut change, mut size) = (0.0, 0.0);
+            for (((c, local), old), direction) in prepared
+                .iter()
+                .zip(&locals)
+                .zip(impulse.iter_mut())
+                .zip(directions.iter_mut())
+            {
+                let u = c.velocity(&state);
+                let w = &c.w;
+                let o = *old;
+                let q = [
+                    u[0] - (w[0] * o[0] + w[1] * o[1] + w[2] * o[2]),
+                    u[1] - (w[3] * o[0] + w[4] * o[1] + w[5] * o[2]),
+                    u[2] - (w[6] * o[0] + w[7] * o[1] + w[8] * o[2]),
+                ];
+                // Take-off (q_N ≥ 0, the most common case among open contacts) without
+                // calling the local solver.
+                let r = if q[0] >= 0.0 {
+                    [0.0; 3]
+                } else {
+                    let (r, status) = local.solve(q, direction);
+                    if status == ContactStatus::Fallback {
+                        report.local_fallbacks += 1;
+                    }
+                    r
+                };
+                let d = [r[0] - o[0], r[1] - o[1], r[2] - o[2]];
+                if d != [0.0; 3] {
+                    c.apply(d, &mut state);
+                }
+                let scale = w[0] * w[0];
+                change += scale * (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+                size += scale * (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]);
+                *old = r;
+            }
+            report.iterations += 1;
+            let full = options
+                .error_check
+                .due(report.iterations, change, size, tolerance);
+            if full {
+                report.error = measure(impulse, &state);
+                report.error_evaluations += 1;
+                if report.error <= tolerance {
+                    report.converged = true;
+                    break;
+                }
+            }
         }
-        report.iterations += 1;
-        let full = options
-            .error_check
-            .due(report.iterations, change, size, tolerance);
-        if full {
-            report.error = measure(impulse, velocity, angular_velocity);
+        if !report.converged {
+            report.error = measure(impulse, &state);
             report.error_evaluations += 1;
-            if report.error <= tolerance {
-                report.converged = true;
-                break;
-            }
+            report.converged = report.error <= tolerance || tolerance == f64::NEG_INFINITY;
         }
     }
-    if !report.converged {
-        report.error = measure(impulse, velocity, angular_velocity);
-        report.error_evaluations += 1;
-        report.converged = report.error <= tolerance || tolerance == f64::NEG_INFINITY;
+    for ((v, w), s) in velocity
+        .iter_mut()
+        .zip(angular_velocity.iter_mut())
+        .zip(&state)
+    {
+        *v = Vector3::new(s[0], s[1], s[2]);
+        *w = Vector3::new(s[3], s[4], s[5]);
     }
     report.returned_sweep = report.iterations;
     report.solve_time = start.elapsed();
