@@ -237,10 +237,15 @@ pub fn solve(
             let (mut sum, mut r_norm, mut u_norm) = (0.0, 0.0, 0.0);
             for (c, r) in prepared.iter().zip(impulse) {
                 let u = c.velocity(state);
+                u_norm += u[0] * u[0] + u[1] * u[1] + u[2] * u[2];
+                if *r == [0.0; 3] && u[0] >= 0.0 {
+                    // Open and separating: the residual is exactly zero (Π_K(−ũ) = 0
+                    // when u_N ≥ 0, in floating point too) and r̂ = 0.
+                    continue;
+                }
                 let scaled = [c.w[0] * r[0], c.w[0] * r[1], c.w[0] * r[2]];
                 sum += coulomb_residual_squared(scaled, u, c.mu);
                 r_norm += scaled[0] * scaled[0] + scaled[1] * scaled[1] + scaled[2] * scaled[2];
-                u_norm += u[0] * u[0] + u[1] * u[1] + u[2] * u[2];
             }
             let scale = free_norm.max(r_norm.sqrt()).max(u_norm.sqrt());
             if scale > f64::EPSILON {
