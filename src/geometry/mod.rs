@@ -7,11 +7,13 @@
 //! - [`stone_family`]: the statistics of a generated stone family beside the library's
 //!   and the EN 13450 grading band (`ballast-post stones DIR`).
 
+pub mod clip;
 pub mod grain_library;
 pub mod polyhedron;
 pub mod shape;
 pub mod stone_family;
 
+pub use clip::{clipped_convex_volume, convex_volume_in_box, ControlBox};
 pub use grain_library::{read_grain_library, Grain};
 pub use polyhedron::{convex_hull, convex_hull_volume, mass_properties, MassProperties};
 pub use shape::{
