@@ -68,6 +68,8 @@ struct Prepared {
     shift: f64,
     mu: f64,
     w: [f64; 9],
+    /// The first body does not move and has zero velocity (set by [`solve`]).
+    resting_first: bool,
 }
 
 #[inline(always)]
@@ -126,6 +128,7 @@ impl Prepared {
             shift: row.shift,
             mu: row.mu,
             w,
+            resting_first: false,
         }
     }
 
@@ -133,7 +136,19 @@ impl Prepared {
     /// `[v, ω]`.
     #[inline(always)]
     fn velocity(&self, state: &[[f64; 6]]) -> [f64; 3] {
-        let (si, sj) = (&state[self.bodies[0]], &state[self.bodies[1]]);
+        let sj = &state[self.bodies[1]];
+        if self.resting_first {
+            // The first body is at rest and stays so (floor, walls): the same sums
+            // without its zero terms (x − 0 = x and y − (±0) = y exactly).
+            let mut u = [0.0; 3];
+            let (vj, wj) = ([sj[0], sj[1], sj[2]], [sj[3], sj[4], sj[5]]);
+            for (k, uk) in u.iter_mut().enumerate() {
+                *uk = dot(&self.frame[k], &vj) + dot(&self.arm_cross[1][k], &wj);
+            }
+            u[0] += self.shift;
+            return u;
+        }
+        let si = &state[self.bodies[0]];
         let dv = [sj[0] - si[0], sj[1] - si[1], sj[2] - si[2]];
         let wi = [si[3], si[4], si[5]];
         let wj = [sj[3], sj[4], sj[5]];
@@ -192,7 +207,7 @@ pub fn solve(
 ) -> NlgsReport {
     let start = Instant::now();
     assert_eq!(rows.len(), impulse.len(), "one impulse per contact");
-    let prepared: Vec<Prepared> = rows.iter().map(|r| Prepared::new(r, inverses)).collect();
+    let mut prepared: Vec<Prepared> = rows.iter().map(|r| Prepared::new(r, inverses)).collect();
     // The local solvers (W_aa, its inverse, µ): read only by contacts that reach them.
     let locals: Vec<LocalCoulomb> = prepared
         .iter()
@@ -204,6 +219,9 @@ pub fn solve(
         .zip(angular_velocity.iter())
         .map(|(v, w)| [v.x, v.y, v.z, w.x, w.y, w.z])
         .collect();
+    for c in &mut prepared {
+        c.resting_first = !c.moves[0] && state[c.bodies[0]] == [0.0; 6];
+    }
     let free_norm = prepared
         .iter()
         .flat_map(|c| c.velocity(&state))

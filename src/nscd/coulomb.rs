@@ -141,12 +141,13 @@ impl LocalCoulomb {
                 -(inv[3] * q[0] + inv[4] * q[1] + inv[5] * q[2]),
                 -(inv[6] * q[0] + inv[7] * q[1] + inv[8] * q[2]),
             ];
-            let norm_t = norm2(r[1], r[2]);
-            if r[0] > 0.0 && norm_t <= mu * r[0] {
-                // Inside the cone: what `project_on_cone` would return, without its
-                // second square root.
+            let cone = mu * r[0];
+            if r[0] > 0.0 && r[1] * r[1] + r[2] * r[2] <= cone * cone {
+                // Inside the cone (no square root: this is the most common case): what
+                // `project_on_cone` would return.
                 return (r, ContactStatus::Stick);
             }
+            let norm_t = norm2(r[1], r[2]);
             if r[0] > 0.0 && norm_t <= mu * r[0] * (1.0 + 1e-13) {
                 // Within rounding of the cone: stick (pulled exactly onto K if outside).
                 return (project_on_cone(r, mu), ContactStatus::Stick);
