@@ -52,40 +52,50 @@ pub struct BodyInverses<'a> {
     pub inverse_inertia: &'a [Matrix3<f64>],
 }
 
-/// One contact's data for the sweep, as plain f64 arrays (one cache-friendly record; the
-/// local solver's cold data is kept apart in [`LocalCoulomb`]).
+/// A body's velocities in the sweep: `[v, 0, ω, 0]` (world), padded to lanes of four.
+type BodyState = [f64; 8];
+
+/// One contact's data for the sweep, as plain f64 arrays in lanes of four (the three
+/// local or world components and a zero pad), so that the compiler can pair them in
+/// vector registers; the local solver's cold data is kept apart in [`LocalCoulomb`].
 struct Prepared {
     bodies: [usize; 2],
     moves: [bool; 2],
-    /// Rows n, t, s of the frame.
-    frame: [[f64; 3]; 3],
-    /// A_s columns (d × f_k), as rows k.
-    arm_cross: [[[f64; 3]; 3]; 2],
-    /// ± I⁻¹ A_s columns (negated for the first body, which receives −Δr).
-    spin: [[[f64; 3]; 3]; 2],
+    /// The first body does not move and has zero velocity (set by [`solve`]).
+    resting_first: bool,
+    /// Columns of the local Jacobian on `[v_j − v_i, ω_j, ω_i]`: `f_k[x]`, `A_j[x][k]`,
+    /// `A_i[x][k]` in lane k (the ω_i columns enter with a minus sign).
+    columns: [[f64; 4]; 9],
+    /// Rows n, t, s of the frame (world lanes).
+    frame: [[f64; 4]; 3],
+    /// ± I⁻¹ A_s columns (world lanes; negated for the first body, which receives −Δr).
+    spin: [[[f64; 4]; 3]; 2],
     /// ± 1/m (negated for the first body).
     inverse_mass: [f64; 2],
     shift: f64,
     mu: f64,
     w: [f64; 9],
-    /// The first body does not move and has zero velocity (set by [`solve`]).
-    resting_first: bool,
 }
 
+/// `[x, y, z, 0]`.
 #[inline(always)]
-fn dot(a: &[f64; 3], b: &[f64; 3]) -> f64 {
-    // nalgebra's order for 3-vectors: (a₀b₀ + a₁b₁) + a₂b₂.
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+fn lanes(v: &Vector3<f64>) -> [f64; 4] {
+    [v.x, v.y, v.z, 0.0]
 }
 
 impl Prepared {
     fn new(row: &ContactRow, inv: &BodyInverses) -> Self {
         let bodies = [row.bodies[0] as usize, row.bodies[1] as usize];
-        let mut arm_cross = [[[0.0; 3]; 3]; 2];
-        let mut spin = [[[0.0; 3]; 3]; 2];
+        let mut columns = [[0.0; 4]; 9];
+        let mut spin = [[[0.0; 4]; 3]; 2];
         let mut inverse_mass = [0.0; 2];
         let mut moves = [false; 2];
         let mut w = [0.0; 9];
+        for (k, f) in row.frame.iter().enumerate() {
+            for x in 0..3 {
+                columns[x][k] = f[x];
+            }
+        }
         for s in 0..2 {
             let b = bodies[s];
             let im = inv.inverse_mass[b];
@@ -95,11 +105,15 @@ impl Prepared {
             inverse_mass[s] = sign * im;
             let mut cross = [Vector3::zeros(); 3];
             let mut turn = [Vector3::zeros(); 3];
+            // Body j's columns are 3..6, body i's 6..9.
+            let first = if s == 0 { 6 } else { 3 };
             for k in 0..3 {
                 cross[k] = row.arms[s].cross(&row.frame[k]);
                 turn[k] = ii * cross[k];
-                arm_cross[s][k] = cross[k].into();
-                spin[s][k] = (sign * turn[k]).into();
+                for x in 0..3 {
+                    columns[first + x][k] = cross[k][x];
+                }
+                spin[s][k] = lanes(&(sign * turn[k]));
             }
             for k in 0..3 {
                 for l in 0..3 {
@@ -117,59 +131,56 @@ impl Prepared {
         Prepared {
             bodies,
             moves,
+            resting_first: false,
+            columns,
             frame: [
-                row.frame[0].into(),
-                row.frame[1].into(),
-                row.frame[2].into(),
+                lanes(&row.frame[0]),
+                lanes(&row.frame[1]),
+                lanes(&row.frame[2]),
             ],
-            arm_cross,
             spin,
             inverse_mass,
             shift: row.shift,
             mu: row.mu,
             w,
-            resting_first: false,
         }
     }
 
-    /// The relative velocity (local, gap shift included) from the bodies' states
-    /// `[v, ω]`.
+    /// The relative velocity (local, gap shift included) from the bodies' states.
+    /// Each component is `(f_k·Δv) + (A_j,k·ω_j) − (A_i,k·ω_i)`, every dot product
+    /// summed as `(a₀b₀ + a₁b₁) + a₂b₂` (nalgebra's order).
     #[inline(always)]
-    fn velocity(&self, state: &[[f64; 6]]) -> [f64; 3] {
+    fn velocity(&self, state: &[BodyState]) -> [f64; 3] {
+        let c = &self.columns;
         let sj = &state[self.bodies[1]];
+        let mut u = [0.0; 4];
         if self.resting_first {
             // The first body is at rest and stays so (floor, walls): the same sums
             // without its zero terms (x − 0 = x and y − (±0) = y exactly).
-            let mut u = [0.0; 3];
-            let (vj, wj) = ([sj[0], sj[1], sj[2]], [sj[3], sj[4], sj[5]]);
             for (k, uk) in u.iter_mut().enumerate() {
-                *uk = dot(&self.frame[k], &vj) + dot(&self.arm_cross[1][k], &wj);
+                *uk = (c[0][k] * sj[0] + c[1][k] * sj[1] + c[2][k] * sj[2])
+                    + (c[3][k] * sj[4] + c[4][k] * sj[5] + c[5][k] * sj[6]);
             }
-            u[0] += self.shift;
-            return u;
+        } else {
+            let si = &state[self.bodies[0]];
+            let dv = [sj[0] - si[0], sj[1] - si[1], sj[2] - si[2]];
+            for (k, uk) in u.iter_mut().enumerate() {
+                *uk = (c[0][k] * dv[0] + c[1][k] * dv[1] + c[2][k] * dv[2])
+                    + (c[3][k] * sj[4] + c[4][k] * sj[5] + c[5][k] * sj[6])
+                    - (c[6][k] * si[4] + c[7][k] * si[5] + c[8][k] * si[6]);
+            }
         }
-        let si = &state[self.bodies[0]];
-        let dv = [sj[0] - si[0], sj[1] - si[1], sj[2] - si[2]];
-        let wi = [si[3], si[4], si[5]];
-        let wj = [sj[3], sj[4], sj[5]];
-        let mut u = [0.0; 3];
-        for (k, uk) in u.iter_mut().enumerate() {
-            *uk = dot(&self.frame[k], &dv) + dot(&self.arm_cross[1][k], &wj)
-                - dot(&self.arm_cross[0][k], &wi);
-        }
-        u[0] += self.shift;
-        u
+        [u[0] + self.shift, u[1], u[2]]
     }
 
     /// Applies the impulse change `d` to the two bodies.
     #[inline(always)]
-    fn apply(&self, d: [f64; 3], state: &mut [[f64; 6]]) {
+    fn apply(&self, d: [f64; 3], state: &mut [BodyState]) {
         let f = &self.frame;
-        let world = [
-            f[0][0] * d[0] + f[1][0] * d[1] + f[2][0] * d[2],
-            f[0][1] * d[0] + f[1][1] * d[1] + f[2][1] * d[2],
-            f[0][2] * d[0] + f[1][2] * d[1] + f[2][2] * d[2],
-        ];
+        let mut world = [0.0; 4];
+        for (x, wx) in world.iter_mut().enumerate() {
+            *wx = f[0][x] * d[0] + f[1][x] * d[1] + f[2][x] * d[2];
+        }
         for s in 0..2 {
             if !self.moves[s] {
                 continue;
@@ -177,9 +188,9 @@ impl Prepared {
             let m = self.inverse_mass[s];
             let sp = &self.spin[s];
             let b = &mut state[self.bodies[s]];
-            for x in 0..3 {
+            for x in 0..4 {
                 b[x] += m * world[x];
-                b[3 + x] += sp[0][x] * d[0] + sp[1][x] * d[1] + sp[2][x] * d[2];
+                b[4 + x] += sp[0][x] * d[0] + sp[1][x] * d[1] + sp[2][x] * d[2];
             }
         }
     }
@@ -214,13 +225,13 @@ pub fn solve(
         .map(|c| LocalCoulomb::new(&c.w, c.mu))
         .collect();
     // The bodies' velocities [v, ω], one record per body, for the sweeps.
-    let mut state: Vec<[f64; 6]> = velocity
+    let mut state: Vec<BodyState> = velocity
         .iter()
         .zip(angular_velocity.iter())
-        .map(|(v, w)| [v.x, v.y, v.z, w.x, w.y, w.z])
+        .map(|(v, w)| [v.x, v.y, v.z, 0.0, w.x, w.y, w.z, 0.0])
         .collect();
     for c in &mut prepared {
-        c.resting_first = !c.moves[0] && state[c.bodies[0]] == [0.0; 6];
+        c.resting_first = !c.moves[0] && state[c.bodies[0]] == [0.0; 8];
     }
     let free_norm = prepared
         .iter()
@@ -251,7 +262,7 @@ pub fn solve(
         Stopping::Sweeps(n) => (f64::NEG_INFINITY, n),
     };
     if !rows.is_empty() {
-        let measure = |impulse: &[[f64; 3]], state: &[[f64; 6]]| {
+        let measure = |impulse: &[[f64; 3]], state: &[BodyState]| {
             let (mut sum, mut r_norm, mut u_norm) = (0.0, 0.0, 0.0);
             for (c, r) in prepared.iter().zip(impulse) {
                 let u = c.velocity(state);
@@ -334,7 +345,7 @@ pub fn solve(
         .zip(&state)
     {
         *v = Vector3::new(s[0], s[1], s[2]);
-        *w = Vector3::new(s[3], s[4], s[5]);
+        *w = Vector3::new(s[4], s[5], s[6]);
     }
     report.returned_sweep = report.iterations;
     report.solve_time = start.elapsed();
