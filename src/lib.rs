@@ -17,6 +17,7 @@ pub mod geometry;
 pub mod mesh;
 pub mod nscd;
 pub mod output;
+pub mod pack;
 pub mod post;
 pub mod qdem;
 pub mod scene;

@@ -1,18 +1,10 @@
-//! Front ends of the solver binaries whose numerics are still being built: they accept
-//! the run contract, check that the scene file exists, and exit with status 2 saying
-//! "not implemented yet" rather than write anything that could pass for a result.
+//! Front ends of the solver binaries: clap structs that turn into a run context and
+//! call the library.
 
 use crate::scene::RunArgs;
 use crate::solid::fem_run::{self, Analyses};
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
-
-/// Stops with a clear error if the scene file cannot be read, then reports `what` as not
-/// implemented. Reading first means a typo in the path is reported as such.
-fn planned(args: &RunArgs, what: &str) -> crate::Result<()> {
-    std::fs::metadata(&args.scene).map_err(|e| crate::Error::io(&args.scene, e))?;
-    Err(super::not_implemented(what))
-}
 
 /// `ballast-pack`: ballast beds by gravity deposition.
 #[derive(Debug, Parser)]
@@ -29,7 +21,7 @@ pub struct PackCli {
 
 /// Runs `ballast-pack`.
 pub fn run_pack(cli: PackCli) -> crate::Result<()> {
-    planned(&cli.run, "ballast-pack (gravity deposition)")
+    crate::pack::run::run(&cli.run.context()?)
 }
 
 /// `ballast-nscd`: non-smooth contact dynamics of rigid polyhedra.

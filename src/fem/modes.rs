@@ -380,7 +380,7 @@ impl Problem<'_, '_> {
             len: 0,
             solved: 0,
         };
-        let mut rng = SplitMix64(options.seed);
+        let mut rng = crate::geometry::random::SplitMix(options.seed);
         let mut solves = 0;
         let mut random = |cols: usize| Mat::<f64>::from_fn(n, cols, |_, _| rng.next_signed());
         self.extend(&mut basis, random(block));
@@ -490,22 +490,4 @@ fn normalise_sign(v: &[f64]) -> Vec<f64> {
         .fold(0.0f64, |acc, x| if x.abs() > acc.abs() { x } else { acc });
     let sign = if largest < 0.0 { -1.0 } else { 1.0 };
     v.iter().map(|x| sign * x).collect()
-}
-
-/// A small deterministic generator for the start block (no global randomness).
-struct SplitMix64(u64);
-
-impl SplitMix64 {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in [−1, 1).
-    fn next_signed(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-    }
 }

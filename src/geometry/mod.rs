@@ -10,6 +10,7 @@
 pub mod clip;
 pub mod grain_library;
 pub mod polyhedron;
+pub mod random;
 pub mod shape;
 pub mod stone_family;
 

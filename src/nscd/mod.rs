@@ -29,6 +29,7 @@ pub mod body_nlgs;
 pub mod coulomb;
 pub mod motion;
 pub mod nlgs;
+pub mod packed;
 pub mod problem;
 pub mod residual;
 pub mod run;

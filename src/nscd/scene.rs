@@ -61,6 +61,12 @@
 //! material = "granite"
 //! region_min = [..]                 # placed on a lattice in this box, random turns
 //! region_max = [..]
+//!
+//! [packing]                         # or: the bed that ballast-pack built
+//! file = "../results/bed-quick/packing.toml"
+//! stone_material = "granite"
+//! sleeper_material = "concrete"     # optional: the sleepers as dynamic bodies
+//! wall_material = "steel"           # optional: the container's floor and side walls
 //! ```
 
 use std::path::{Path, PathBuf};
@@ -72,6 +78,7 @@ use serde::Deserialize;
 use super::body::{Body, BodyShape, Motion, Prescribed, PrincipalShape};
 use super::motion::{mesh_pieces, Pieces, VelocityTable};
 use super::step::FrictionTable;
+use crate::geometry::random::SplitMix;
 use crate::scene::{
     Acceleration, Angle, Density, Frequency, Length, Time, Validate, Validator, Velocity,
 };
@@ -111,6 +118,9 @@ pub struct NscdScene {
     /// Stones from meshes.
     #[serde(default)]
     pub stones: Option<StonesSpec>,
+    /// Stones, sleepers and container from a `ballast-pack` packing file.
+    #[serde(default)]
+    pub packing: Option<PackingSpec>,
     /// VTK output.
     #[serde(default)]
     pub output: OutputSpec,
@@ -446,6 +456,22 @@ fn one_u64() -> u64 {
     1
 }
 
+/// `[packing]`: the bodies of a packing file written by `ballast-pack`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PackingSpec {
+    /// The packing file (relative to the scene file).
+    pub file: PathBuf,
+    /// Material of the stones (needs a density).
+    pub stone_material: String,
+    /// Material of the sleepers (needs a density); without it they are left out.
+    #[serde(default)]
+    pub sleeper_material: Option<String>,
+    /// Material of the container's floor and side walls; without it none is added.
+    #[serde(default)]
+    pub wall_material: Option<String>,
+}
+
 /// `[output]`.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -674,6 +700,27 @@ impl Validate for NscdScene {
                 );
             }
         }
+        if let Some(p) = &self.packing {
+            let with_density = [Some(&p.stone_material), p.sleeper_material.as_ref()];
+            for (key, name) in ["packing.stone_material", "packing.sleeper_material"]
+                .into_iter()
+                .zip(with_density)
+            {
+                let Some(name) = name else { continue };
+                if !known(name) {
+                    v.fail(key, unknown(name));
+                } else {
+                    v.check(
+                        key,
+                        dense(name),
+                        format!("material \"{name}\" needs a density"),
+                    );
+                }
+            }
+            if let Some(name) = &p.wall_material {
+                v.check("packing.wall_material", known(name), unknown(name));
+            }
+        }
         if let Some(a) = &self.analysis {
             v.check(
                 "analysis.kind",
@@ -870,7 +917,8 @@ fn rotation(angles: &Option<[Angle; 3]>) -> UnitQuaternion<f64> {
 /// The bodies and tables a scene builds.
 #[derive(Debug, Clone)]
 pub struct Model {
-    /// Every body: planes first, then boxes, driven meshes' pieces, blocks, stones.
+    /// Every body: planes first, then boxes, driven meshes' pieces, blocks, stones, and
+    /// a packing's walls, sleepers and stones.
     pub bodies: Vec<Body>,
     /// µ per material pair.
     pub friction: FrictionTable,
@@ -1038,6 +1086,25 @@ impl NscdScene {
             bodies.extend(placed);
             stone_diameters = diameters;
         }
+        if let Some(p) = &self.packing {
+            let file = Self::resolve(scene_path, &p.file);
+            let packing = crate::pack::Packing::read(&file)?;
+            let stuff = |name: &str| super::packed::Stuff {
+                material: self.material_index(name),
+                density: self.density(name),
+            };
+            let packed = super::packed::packed_bodies(
+                &file,
+                &packing,
+                &super::packed::PackedMaterials {
+                    stones: stuff(&p.stone_material),
+                    sleepers: p.sleeper_material.as_deref().map(stuff),
+                    walls: p.wall_material.as_deref().map(|m| self.material_index(m)),
+                },
+            )?;
+            bodies.extend(packed.bodies);
+            stone_diameters.extend(packed.stone_diameters);
+        }
         Ok(Model {
             bodies,
             friction,
@@ -1077,8 +1144,35 @@ fn driven_pieces(
     Ok(out)
 }
 
-/// Reads the stone meshes of `spec.directory` (sorted `stone_*.msh`) as convex hulls.
-pub fn read_stone_shapes(directory: &Path) -> Result<Vec<(PathBuf, Arc<BodyShape>)>> {
+/// A stone of the family: its mesh file, its convex hull in the principal frame, and
+/// where that frame lies in the mesh's coordinates (mesh point = `mesh_pose` · local).
+#[derive(Debug, Clone)]
+pub struct StoneShape {
+    /// The mesh file.
+    pub file: PathBuf,
+    /// The hull in its principal frame.
+    pub shape: Arc<BodyShape>,
+    /// The principal frame in the (scaled) mesh coordinates.
+    pub mesh_pose: Isometry3<f64>,
+    /// The factor applied to the mesh coordinates.
+    pub scale: f64,
+}
+
+impl StoneShape {
+    /// Equivalent-sphere diameter (6V/π)^(1/3) (m).
+    pub fn diameter(&self) -> f64 {
+        (6.0 * self.shape.volume / std::f64::consts::PI).cbrt()
+    }
+
+    /// The bounding radius about the mass centre (m).
+    pub fn radius(&self) -> f64 {
+        self.shape.bounding_radius()
+    }
+}
+
+/// Reads the stone meshes of `directory` (sorted `stone_*.msh`) as convex hulls, their
+/// coordinates multiplied by `scale`.
+pub fn read_stone_shapes(directory: &Path, scale: f64) -> Result<Vec<StoneShape>> {
     let entries = std::fs::read_dir(directory).map_err(|e| Error::io(directory, e))?;
     let mut files: Vec<PathBuf> = entries
         .filter_map(|e| e.ok().map(|e| e.path()))
@@ -1089,49 +1183,35 @@ pub fn read_stone_shapes(directory: &Path) -> Result<Vec<(PathBuf, Arc<BodyShape
         })
         .collect();
     files.sort();
-    let mut shapes = Vec::with_capacity(files.len());
-    for file in files {
-        let mesh = crate::mesh::read_msh(&file)?;
-        let corners = crate::geometry::corner_vertices(&mesh.nodes, &mesh.boundary);
-        let points: Vec<Point3<f64>> = if corners.len() >= 4 {
-            corners.iter().map(|&i| mesh.nodes[i as usize]).collect()
-        } else {
-            let mut nodes: Vec<u32> = mesh.boundary.iter().flatten().copied().collect();
-            nodes.sort_unstable();
-            nodes.dedup();
-            nodes.iter().map(|&i| mesh.nodes[i as usize]).collect()
-        };
-        let principal = BodyShape::convex_hull(&points, &file.display().to_string())?;
-        shapes.push((file, Arc::new(principal.shape)));
-    }
-    Ok(shapes)
+    files.iter().map(|f| read_stone_shape(f, scale)).collect()
 }
 
-/// A small deterministic generator (SplitMix64) for the stones' orientations.
-struct SplitMix(u64);
-
-impl SplitMix {
-    fn next_f64(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^= z >> 31;
-        (z >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    /// A uniformly random rotation (Shoemake).
-    fn rotation(&mut self) -> UnitQuaternion<f64> {
-        let (u1, u2, u3) = (self.next_f64(), self.next_f64(), self.next_f64());
-        let tau = std::f64::consts::TAU;
-        let (a, b) = ((1.0 - u1).sqrt(), u1.sqrt());
-        UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
-            b * (tau * u3).cos(),
-            a * (tau * u2).sin(),
-            a * (tau * u2).cos(),
-            b * (tau * u3).sin(),
-        ))
-    }
+/// Reads one stone mesh as the convex hull of its boundary corners (all boundary nodes
+/// when it has fewer than four corners), coordinates multiplied by `scale`.
+pub fn read_stone_shape(file: &Path, scale: f64) -> Result<StoneShape> {
+    let mesh = crate::mesh::read_msh(file)?;
+    let corners = crate::geometry::corner_vertices(&mesh.nodes, &mesh.boundary);
+    let points: Vec<Point3<f64>> = if corners.len() >= 4 {
+        corners
+            .iter()
+            .map(|&i| mesh.nodes[i as usize] * scale)
+            .collect()
+    } else {
+        let mut nodes: Vec<u32> = mesh.boundary.iter().flatten().copied().collect();
+        nodes.sort_unstable();
+        nodes.dedup();
+        nodes
+            .iter()
+            .map(|&i| mesh.nodes[i as usize] * scale)
+            .collect()
+    };
+    let principal = BodyShape::convex_hull(&points, &file.display().to_string())?;
+    Ok(StoneShape {
+        file: file.to_path_buf(),
+        shape: Arc::new(principal.shape),
+        mesh_pose: principal.pose,
+        scale,
+    })
 }
 
 fn place_stones(
@@ -1140,7 +1220,7 @@ fn place_stones(
     scene_path: &Path,
 ) -> Result<(Vec<Body>, Vec<f64>)> {
     let directory = NscdScene::resolve(scene_path, &spec.directory);
-    let shapes = read_stone_shapes(&directory)?;
+    let shapes = read_stone_shapes(&directory, 1.0)?;
     if shapes.is_empty() {
         return Err(Error::invalid(
             scene_path,
@@ -1150,13 +1230,7 @@ fn place_stones(
             ),
         ));
     }
-    let radius = shapes
-        .iter()
-        .map(|(_, s)| match &s.collider {
-            crate::contact::Collider::Convex(c) => c.bounding_radius(),
-            crate::contact::Collider::HalfSpace(_) => 0.0,
-        })
-        .fold(0.0, f64::max);
+    let radius = shapes.iter().map(StoneShape::radius).fold(0.0, f64::max);
     let spacing = 2.0 * radius * 1.02;
     let lo = vec3(&spec.region_min);
     let hi = vec3(&spec.region_max);
@@ -1184,12 +1258,16 @@ fn place_stones(
             k / (cells.x * cells.y),
         );
         let centre = lo + spacing * Vector3::new(ix as f64 + 0.5, iy as f64 + 0.5, iz as f64 + 0.5);
-        let (file, shape) = &shapes[k % shapes.len()];
-        let name = file.file_stem().and_then(|s| s.to_str()).unwrap_or("stone");
-        diameters.push((6.0 * shape.volume / std::f64::consts::PI).cbrt());
+        let stone = &shapes[k % shapes.len()];
+        let name = stone
+            .file
+            .file_stem()
+            .and_then(|s| s.to_str())
+            .unwrap_or("stone");
+        diameters.push(stone.diameter());
         bodies.push(Body::dynamic(
             &format!("{name}#{k}"),
-            shape.clone(),
+            stone.shape.clone(),
             density,
             material,
             Isometry3::from_parts(Translation3::from(centre), random.rotation()),

@@ -1,0 +1,608 @@
+//! Gravity deposition of polyhedral stones with the NSCD engine: rain, settle, strike
+//! off, lower the sleepers, rain the crib ballast, compact.
+//!
+//! # Raining
+//! A phase's stones enter at once as a column above the highest body, built by
+//! ballistic deposition of their bounding spheres (each stone at the lowest of a few
+//! random plan positions where its sphere rests on the column so far), so no two
+//! inserted stones, nor a stone and anything below the column, overlap; plan positions
+//! over a sleeper are refused. The column then falls under gravity: all its stones
+//! start at rest and fall alike until the lowest land, so they meet only as the heap
+//! builds up from the bottom. A column is a few times the layer it fills (bounding
+//! spheres pack loosely), so the stones land at a few m/s at most. Stone shape (drawn
+//! from the family), plan position and orientation (uniform, Shoemake) come from one
+//! SplitMix64 stream seeded by the scene, in a fixed order: the packing is a function
+//! of the seed.
+//!
+//! # How many stones
+//! A phase fills a level: it rains the number of stones whose volume fills the free
+//! volume below that level at a solid fraction of 0.62, above what a gravity deposit
+//! of angular stones reaches (≈ 0.55–0.60), so the settled heap stands above the level;
+//! the stones whose mass centre ends above the level are then removed (strike-off, as a
+//! screed would) and the bed settles again.
+//!
+//! # Settling
+//! A phase ends when the rms speed of the dynamic bodies, √(2 KE / Σm), is below the
+//! scene's `settle_speed`, or after `max_phase_time` (then reported as not settled).
+
+use std::collections::HashMap;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use nalgebra::{Isometry3, Translation3, Unit, Vector3};
+
+use crate::contact::ContactPoint;
+use crate::geometry::random::SplitMix;
+use crate::nscd::body::{Body, BodyShape, Motion, Prescribed};
+use crate::nscd::nlgs::{ErrorCheck, NlgsOptions, Stopping};
+use crate::nscd::scene::StoneShape;
+use crate::nscd::step::{FrictionTable, MoreauJean, SolvedContact, StepParams, StepReport};
+
+/// Solid fraction assumed when counting the stones of a phase (above any gravity
+/// deposit of angular grains, so the heap overfills the level before the strike-off).
+pub const FILL_FRACTION: f64 = 0.62;
+
+/// Random plan positions tried for one stone of the column (the lowest is kept).
+pub const PLACEMENT_TRIES: usize = 8;
+
+/// What a body of the bed is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Role {
+    /// The floor (z = 0) or a wall.
+    Boundary,
+    /// A stone: index into the family.
+    Stone(usize),
+    /// A sleeper: its number.
+    Sleeper(usize),
+}
+
+/// A sleeper to lower onto the bed: its shape (principal frame) and where that frame
+/// sits in the sleeper's own frame (footprint centred on the origin, underside at z = 0,
+/// level).
+#[derive(Debug, Clone)]
+pub struct SleeperModel {
+    /// Hull in the principal frame.
+    pub shape: Arc<BodyShape>,
+    /// Principal frame in the sleeper's own frame.
+    pub frame: Isometry3<f64>,
+    /// x-extent and y-extent of the footprint (m).
+    pub footprint: [f64; 2],
+    /// Density (kg/m³).
+    pub density: f64,
+    /// Material index.
+    pub material: u32,
+}
+
+/// Everything fixed for the deposition.
+#[derive(Debug, Clone)]
+pub struct DepositSetup {
+    /// The stone family.
+    pub family: Vec<StoneShape>,
+    /// Stone density and material index.
+    pub stone_density: f64,
+    /// Stone material index.
+    pub stone_material: u32,
+    /// Container: [0, L] × [−W/2, W/2] × [0, ∞).
+    pub length: f64,
+    /// Width (y).
+    pub width: f64,
+    /// Wall material index.
+    pub wall_material: u32,
+    /// Time stepping.
+    pub params: StepParams,
+    /// NLGS tolerance and sweep cap.
+    pub tolerance: f64,
+    /// Sweep cap.
+    pub max_sweeps: usize,
+    /// Friction table after raining.
+    pub friction: FrictionTable,
+    /// Friction while raining (stone/stone pairs lowered).
+    pub rain_friction: FrictionTable,
+    /// Settling criterion: rms speed (m/s).
+    pub settle_speed: f64,
+    /// Cap on a phase's simulated time (s).
+    pub max_phase_time: f64,
+    /// Cap on the number of stones.
+    pub max_stones: usize,
+    /// Seed.
+    pub seed: u64,
+}
+
+/// How one phase ended.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PhaseReport {
+    /// Its name.
+    pub name: String,
+    /// Simulated time (s).
+    pub time: f64,
+    /// Steps.
+    pub steps: u64,
+    /// Whether the settling criterion was met (false: `max_phase_time` reached).
+    pub settled: bool,
+    /// Stones inserted in it.
+    pub inserted: usize,
+    /// Stones removed by its strike-off.
+    pub removed: usize,
+}
+
+/// A step's record for the CSV and the progress display.
+#[derive(Debug, Clone, Copy)]
+pub struct StepRecord<'a> {
+    /// Time at the end of the step (s).
+    pub time: f64,
+    /// The phase.
+    pub phase: &'a str,
+    /// Stones in the bed.
+    pub stones: usize,
+    /// The engine's report.
+    pub report: &'a StepReport,
+}
+
+/// The deposition in progress: bodies, their roles, the engine and the clock.
+pub struct Deposition {
+    /// Fixed inputs.
+    pub setup: DepositSetup,
+    /// Bodies (boundaries first).
+    pub bodies: Vec<Body>,
+    /// The role of each body.
+    pub roles: Vec<Role>,
+    /// Simulated time (s).
+    pub time: f64,
+    /// Steps taken.
+    pub steps: u64,
+    /// Σ over steps of the dynamic bodies (for grains·steps per second).
+    pub body_steps: u64,
+    /// Wall time per engine phase: detect, build, solve, update.
+    pub phase_times: [Duration; 4],
+    /// Wall time stepping.
+    pub stepping: Duration,
+    /// Phases done.
+    pub phases: Vec<PhaseReport>,
+    engine: MoreauJean,
+    random: SplitMix,
+    pitch: f64,
+    inserted: usize,
+}
+
+impl Deposition {
+    /// An empty container (floor and four walls) ready for rain.
+    pub fn new(setup: DepositSetup) -> Self {
+        let half_space = |n: Vector3<f64>| Arc::new(BodyShape::half_space(Unit::new_normalize(n)));
+        let (l, w) = (setup.length, setup.width);
+        let planes = [
+            ("floor", Vector3::z(), Vector3::zeros()),
+            ("wall_x_min", Vector3::x(), Vector3::zeros()),
+            ("wall_x_max", -Vector3::x(), Vector3::new(l, 0.0, 0.0)),
+            ("wall_y_min", Vector3::y(), Vector3::new(0.0, -0.5 * w, 0.0)),
+            ("wall_y_max", -Vector3::y(), Vector3::new(0.0, 0.5 * w, 0.0)),
+        ];
+        let bodies: Vec<Body> = planes
+            .iter()
+            .map(|(name, normal, point)| {
+                Body::fixed(
+                    name,
+                    half_space(*normal),
+                    setup.wall_material,
+                    Isometry3::translation(point.x, point.y, point.z),
+                    Motion::Static,
+                )
+            })
+            .collect();
+        let roles = vec![Role::Boundary; bodies.len()];
+        let radius = setup
+            .family
+            .iter()
+            .map(StoneShape::radius)
+            .fold(0.0, f64::max);
+        let engine = Self::engine(&setup);
+        let random = SplitMix(setup.seed);
+        Deposition {
+            pitch: 2.02 * radius,
+            setup,
+            bodies,
+            roles,
+            time: 0.0,
+            steps: 0,
+            body_steps: 0,
+            phase_times: [Duration::ZERO; 4],
+            stepping: Duration::ZERO,
+            phases: Vec::new(),
+            engine,
+            random,
+            inserted: 0,
+        }
+    }
+
+    fn engine(setup: &DepositSetup) -> MoreauJean {
+        MoreauJean::new(
+            setup.params,
+            NlgsOptions {
+                stopping: Stopping::Tolerance {
+                    tolerance: setup.tolerance,
+                    max_sweeps: setup.max_sweeps,
+                },
+                error_check: ErrorCheck::EverySweep,
+            },
+        )
+    }
+
+    /// The contact points of the current configuration (a detection without a step).
+    pub fn detect(&mut self) -> Vec<ContactPoint> {
+        self.engine.detect(&self.bodies)
+    }
+
+    /// The contacts of the last step with their impulses.
+    pub fn last_contacts(&self) -> &[SolvedContact] {
+        self.engine.contacts()
+    }
+
+    /// Stones in the bed.
+    pub fn stone_count(&self) -> usize {
+        self.roles
+            .iter()
+            .filter(|r| matches!(r, Role::Stone(_)))
+            .count()
+    }
+
+    /// The cell of the column's plan grid: the family's largest bounding diameter (m).
+    pub fn pitch(&self) -> f64 {
+        self.pitch
+    }
+
+    /// Mean stone volume of the family (m³).
+    pub fn mean_stone_volume(&self) -> f64 {
+        let f = &self.setup.family;
+        f.iter().map(|s| s.shape.volume).sum::<f64>() / f.len() as f64
+    }
+
+    fn step(
+        &mut self,
+        friction_while_raining: bool,
+        phase: &str,
+        observe: &mut dyn FnMut(&StepRecord, &[Body], &[Role]),
+    ) -> StepReport {
+        let friction = if friction_while_raining {
+            &self.setup.rain_friction
+        } else {
+            &self.setup.friction
+        };
+        let clock = Instant::now();
+        let report = self.engine.step(&mut self.bodies, self.time, friction);
+        self.stepping += clock.elapsed();
+        for (total, t) in self.phase_times.iter_mut().zip(report.phase_times) {
+            *total += t;
+        }
+        self.steps += 1;
+        self.time = self.steps as f64 * self.setup.params.dt;
+        self.body_steps += self.bodies.iter().filter(|b| b.is_dynamic()).count() as u64;
+        let record = StepRecord {
+            time: self.time,
+            phase,
+            stones: self.stone_count(),
+            report: &report,
+        };
+        observe(&record, &self.bodies, &self.roles);
+        report
+    }
+
+    /// rms speed √(2 KE / Σm) of the dynamic bodies (m/s).
+    fn rms_speed(&self, kinetic_energy: f64) -> f64 {
+        let mass: f64 = self
+            .bodies
+            .iter()
+            .filter(|b| b.is_dynamic())
+            .map(|b| b.mass)
+            .sum();
+        if mass > 0.0 {
+            (2.0 * kinetic_energy / mass).sqrt()
+        } else {
+            0.0
+        }
+    }
+
+    /// Highest hull vertex of any bounded body (m); 0 for an empty container.
+    fn top(&self) -> f64 {
+        self.bodies
+            .iter()
+            .filter(|b| b.shape.collider.is_bounded())
+            .flat_map(|b| {
+                let pose = b.pose();
+                b.shape.vertices.iter().map(move |p| (pose * p).z)
+            })
+            .fold(0.0, f64::max)
+    }
+
+    /// xy footprints of the sleepers (min x, max x, min y, max y).
+    fn sleeper_footprints(&self) -> Vec<[f64; 4]> {
+        self.bodies
+            .iter()
+            .zip(&self.roles)
+            .filter(|(_, r)| matches!(r, Role::Sleeper(_)))
+            .map(|(b, _)| {
+                let v = b.world_vertices();
+                let (mut lo, mut hi) = (v[0], v[0]);
+                for p in &v {
+                    lo = lo.inf(p);
+                    hi = hi.sup(p);
+                }
+                [lo.x, hi.x, lo.y, hi.y]
+            })
+            .collect()
+    }
+
+    /// Inserts a column of `wanted` stones above every body by ballistic deposition of
+    /// their bounding spheres: each stone (shape drawn from the family) tries
+    /// [`PLACEMENT_TRIES`] random plan positions clear of the walls and of the sleeper
+    /// footprints; at each, its sphere is lowered from above until it rests on the plane
+    /// z = top or on a sphere already in the column; the lowest of the tries is kept.
+    /// No two spheres overlap, so no two inserted stones do, nor a stone and anything
+    /// below the column. Returns how many went in (a stone too large for the container,
+    /// or whose tries all fell on sleepers, is skipped).
+    fn insert_column(&mut self, wanted: usize) -> usize {
+        let (l, w) = (self.setup.length, self.setup.width);
+        let base = self.top() + 1e-3;
+        let blocked = self.sleeper_footprints();
+        let cell = self.pitch;
+        let key = |x: f64, y: f64| ((x / cell).floor() as i64, (y / cell).floor() as i64);
+        let mut grid: HashMap<(i64, i64), Vec<usize>> = HashMap::new();
+        let mut placed: Vec<(Vector3<f64>, f64)> = Vec::new();
+        for _ in 0..wanted {
+            let family = self.random.below(self.setup.family.len());
+            let r = self.setup.family[family].radius();
+            let mut best: Option<Vector3<f64>> = None;
+            for _ in 0..PLACEMENT_TRIES {
+                if l < 2.0 * r || w < 2.0 * r {
+                    break;
+                }
+                let x = r + (l - 2.0 * r) * self.random.next_f64();
+                let y = -0.5 * w + r + (w - 2.0 * r) * self.random.next_f64();
+                let on_sleeper = blocked.iter().any(|f| {
+                    let dx = (f[0] - x).max(x - f[1]).max(0.0);
+                    let dy = (f[2] - y).max(y - f[3]).max(0.0);
+                    dx * dx + dy * dy < r * r
+                });
+                if on_sleeper {
+                    continue;
+                }
+                let (cx, cy) = key(x, y);
+                let mut z = base + r;
+                for i in cx - 1..=cx + 1 {
+                    for j in cy - 1..=cy + 1 {
+                        for &k in grid.get(&(i, j)).map_or(&[][..], Vec::as_slice) {
+                            let (p, q) = placed[k];
+                            let (dx, dy, reach) = (p.x - x, p.y - y, r + q);
+                            let d2 = dx * dx + dy * dy;
+                            if d2 < reach * reach {
+                                z = z.max(p.z + (reach * reach - d2).sqrt() + 1e-6);
+                            }
+                        }
+                    }
+                }
+                if best.is_none_or(|b| z < b.z) {
+                    best = Some(Vector3::new(x, y, z));
+                }
+            }
+            let Some(centre) = best else {
+                continue;
+            };
+            grid.entry(key(centre.x, centre.y))
+                .or_default()
+                .push(placed.len());
+            placed.push((centre, r));
+            let rotation = self.random.rotation();
+            let stone = &self.setup.family[family];
+            let name = stone
+                .file
+                .file_stem()
+                .and_then(|s| s.to_str())
+                .unwrap_or("stone");
+            self.bodies.push(Body::dynamic(
+                &format!("{name}#{}", self.inserted),
+                stone.shape.clone(),
+                self.setup.stone_density,
+                self.setup.stone_material,
+                Isometry3::from_parts(Translation3::from(centre), rotation),
+            ));
+            self.roles.push(Role::Stone(family));
+            self.inserted += 1;
+        }
+        placed.len()
+    }
+
+    /// Free plan area below which stones can be rained (container minus sleepers, m²).
+    fn free_area(&self) -> f64 {
+        let sleepers: f64 = self
+            .sleeper_footprints()
+            .iter()
+            .map(|f| (f[1] - f[0]) * (f[3] - f[2]))
+            .sum();
+        (self.setup.length * self.setup.width - sleepers).max(0.0)
+    }
+
+    /// Rains stones to fill the bed up to `level` (m) and lets them settle; then strikes
+    /// off the stones whose centre is above `level` and settles again. `bottom` is the
+    /// level from which the new stones fill (the free volume is the free area times
+    /// `level − bottom`).
+    pub fn fill(
+        &mut self,
+        name: &str,
+        bottom: f64,
+        level: f64,
+        observe: &mut dyn FnMut(&StepRecord, &[Body], &[Role]),
+    ) {
+        let volume = self.free_area() * (level - bottom).max(0.0);
+        let room = self.setup.max_stones.saturating_sub(self.stone_count());
+        let wanted =
+            ((FILL_FRACTION * volume / self.mean_stone_volume()).ceil() as usize).min(room);
+        let dt = self.setup.params.dt;
+        let start = self.time;
+        let inserted = self.insert_column(wanted);
+        let mut settled = self.settle_for(name, true, observe);
+        let (time, steps) = (self.time - start, (self.time - start) / dt);
+        let removed = self.strike_off(level);
+        if removed > 0 {
+            settled =
+                self.settle_for(&format!("{name} (after strike-off)"), true, observe) && settled;
+        }
+        self.phases.push(PhaseReport {
+            name: name.to_string(),
+            time,
+            steps: steps.round() as u64,
+            settled,
+            inserted,
+            removed,
+        });
+    }
+
+    /// Removes the stones whose mass centre is above `level`; returns how many. The
+    /// engine restarts cold (the contact memory is keyed by body index).
+    pub fn strike_off(&mut self, level: f64) -> usize {
+        let before = self.bodies.len();
+        let keep: Vec<bool> = self
+            .bodies
+            .iter()
+            .zip(&self.roles)
+            .map(|(b, r)| !(matches!(r, Role::Stone(_)) && b.position.z > level))
+            .collect();
+        let mut k = 0;
+        self.bodies.retain(|_| {
+            k += 1;
+            keep[k - 1]
+        });
+        let mut k = 0;
+        self.roles.retain(|_| {
+            k += 1;
+            keep[k - 1]
+        });
+        let removed = before - self.bodies.len();
+        if removed > 0 {
+            self.engine = Self::engine(&self.setup);
+        }
+        removed
+    }
+
+    /// Steps until settled or `max_phase_time`; true if settled.
+    fn settle_for(
+        &mut self,
+        name: &str,
+        raining_friction: bool,
+        observe: &mut dyn FnMut(&StepRecord, &[Body], &[Role]),
+    ) -> bool {
+        let start = self.time;
+        while self.time - start < self.setup.max_phase_time {
+            let report = self.step(raining_friction, name, observe);
+            if self.rms_speed(report.kinetic_energy) < self.setup.settle_speed {
+                return true;
+            }
+        }
+        false
+    }
+
+    /// Lets the bed settle with the final friction table (a phase of its own).
+    pub fn settle(&mut self, name: &str, observe: &mut dyn FnMut(&StepRecord, &[Body], &[Role])) {
+        let start = self.time;
+        let settled = self.settle_for(name, false, observe);
+        self.phases.push(PhaseReport {
+            name: name.to_string(),
+            time: self.time - start,
+            steps: ((self.time - start) / self.setup.params.dt).round() as u64,
+            settled,
+            inserted: 0,
+            removed: 0,
+        });
+    }
+
+    /// Lowers the sleepers onto the bed: each is placed at its nominal (x, y), level,
+    /// 1 mm above the highest stone under its footprint, and released (a dynamic body
+    /// under gravity); the bed then settles under their weight.
+    pub fn lower_sleepers(
+        &mut self,
+        sleepers: &[(SleeperModel, [f64; 2])],
+        observe: &mut dyn FnMut(&StepRecord, &[Body], &[Role]),
+    ) {
+        for (k, (model, [x, y])) in sleepers.iter().enumerate() {
+            let [fx, fy] = model.footprint;
+            let mut highest: f64 = 0.0;
+            for (b, r) in self.bodies.iter().zip(&self.roles) {
+                if !matches!(r, Role::Stone(_)) {
+                    continue;
+                }
+                for p in b.world_vertices() {
+                    if (p.x - x).abs() <= 0.5 * fx && (p.y - y).abs() <= 0.5 * fy {
+                        highest = highest.max(p.z);
+                    }
+                }
+            }
+            // The sleeper's own frame is level, centred at (x, y), its underside at
+            // `highest + 1 mm`; its principal frame follows from `model.frame`.
+            let origin = Isometry3::translation(*x, *y, highest + 1e-3);
+            let pose = origin * model.frame;
+            let mut body = Body::dynamic(
+                &format!("sleeper_{}", k + 1),
+                model.shape.clone(),
+                model.density,
+                model.material,
+                pose,
+            );
+            body.velocity = Vector3::zeros();
+            self.bodies.push(body);
+            self.roles.push(Role::Sleeper(k));
+        }
+        self.settle("lower sleepers", observe);
+    }
+
+    /// Vibrates the floor vertically (`A sin 2πft`, whole cycles, so the floor ends
+    /// where it started up to the θ-rule's O(h²)), then lets the bed settle with the
+    /// floor at rest.
+    pub fn compact(
+        &mut self,
+        amplitude: f64,
+        frequency: f64,
+        duration: f64,
+        observe: &mut dyn FnMut(&StepRecord, &[Body], &[Role]),
+    ) {
+        let cycles = (duration * frequency).round().max(1.0);
+        let dt = self.setup.params.dt;
+        let steps = (cycles / frequency / dt).round() as u64;
+        let start = self.time;
+        let motion = Prescribed {
+            velocity: Vector3::zeros(),
+            amplitude: Vector3::new(0.0, 0.0, amplitude),
+            frequency,
+            table: None,
+        };
+        // Body 0 is the floor (see `new`).
+        self.bodies[0].velocity = motion.velocity_at(self.time);
+        self.bodies[0].motion = Motion::Driven(motion);
+        for _ in 0..steps {
+            self.step(false, "compaction", observe);
+        }
+        self.bodies[0].motion = Motion::Static;
+        self.bodies[0].velocity = Vector3::zeros();
+        self.phases.push(PhaseReport {
+            name: "compaction".into(),
+            time: self.time - start,
+            steps,
+            settled: true,
+            inserted: 0,
+            removed: 0,
+        });
+        self.settle("settle after compaction", observe);
+    }
+
+    /// The floor's height after compaction (m; 0 without it).
+    pub fn floor_offset(&self) -> f64 {
+        self.bodies[0].position.z
+    }
+
+    /// The stones' equivalent diameters (m), in body order.
+    pub fn stone_diameters(&self) -> Vec<f64> {
+        self.roles
+            .iter()
+            .filter_map(|r| match r {
+                Role::Stone(f) => Some(self.setup.family[*f].diameter()),
+                _ => None,
+            })
+            .collect()
+    }
+}

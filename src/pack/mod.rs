@@ -1,0 +1,20 @@
+//! `ballast-pack`: ballast beds by gravity deposition with the NSCD engine (seed 004 §4:
+//! "the initial position of the ballast particles and sleeper was set by free fall";
+//! seed 000 builds its 7-sleeper slice the same way).
+//!
+//! - [`scene`]: the bed scene file (stones, bed, sleepers, deposition, compaction);
+//! - [`deposit`]: raining stones in lattice layers, settling, strike-off, lowering the
+//!   sleepers, crib ballast, floor vibration;
+//! - [`report`]: compactness in control boxes by exact polyhedron clipping,
+//!   coordination number, interpenetration;
+//! - [`packing`]: the packing file the solvers read;
+//! - [`run`]: `ballast-pack SCENE.toml` (files and summary).
+
+pub mod deposit;
+pub mod packing;
+pub mod report;
+pub mod run;
+pub mod scene;
+
+pub use packing::{Packing, Placement};
+pub use scene::BedScene;

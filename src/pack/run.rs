@@ -1,0 +1,613 @@
+//! `ballast-pack SCENE.toml`: builds the bed of a [`BedScene`] and writes it.
+//!
+//! Output directory:
+//! - `packing.toml`: the packing ([`super::packing`]), read by `ballast-nscd`;
+//! - `stones.vtu`, `sleepers.vtu`: the final bed as triangulated surfaces (cell field
+//!   `id`, point field `velocity_m_per_s`);
+//! - `control_boxes.vtu`: the control boxes, cell field `compactness`;
+//! - `bed.pvd` + `frames/bed_NNNN.vtu`: the deposition (stones and sleepers);
+//! - `deposit.csv`: per step, phase, stones, contacts, NLGS sweeps and error, kinetic
+//!   energy, interpenetration;
+//! - `summary.json`: grains, d50, compactness per control box, interpenetration,
+//!   coordination number, phases, wall times, grains·steps per second.
+
+use std::path::Path;
+use std::sync::Arc;
+use std::time::Instant;
+
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+use serde_json::json;
+
+use super::deposit::{DepositSetup, Deposition, Role, SleeperModel};
+use super::packing::{PackedMesh, Packing, Placement, PACKING_FORMAT};
+use super::report::{
+    compactness, control_boxes, coordination_numbers, interpenetration, median, stones_outside,
+    Compactness,
+};
+use super::scene::BedScene;
+use crate::geometry::ControlBox;
+use crate::nscd::body::{Body, BodyShape};
+use crate::nscd::motion::{mesh_pieces, Pieces};
+use crate::nscd::run::grains_grid;
+use crate::nscd::scene::{read_stone_shapes, NscdScene};
+use crate::nscd::step::{FrictionTable, StepParams};
+use crate::output::{write_json, write_vtu, CsvSeries, Grid, PvdWriter};
+use crate::scene::{PhaseTimer, RunContext, Summary};
+use crate::{Error, Result};
+
+/// A sleeper model and how its placement frame sits in its mesh (or cuboid) frame.
+struct SleeperSource {
+    model: SleeperModel,
+    /// Own frame (footprint centred, underside at z = 0) from the mesh frame.
+    own_from_mesh: Isometry3<f64>,
+    mesh: Option<std::path::PathBuf>,
+    size: Option<[f64; 3]>,
+}
+
+fn sleeper_source(scene: &BedScene, scene_path: &Path) -> Result<Option<SleeperSource>> {
+    let Some(spec) = &scene.sleepers else {
+        return Ok(None);
+    };
+    let density = scene.density(&spec.material);
+    let material = scene.material_index(&spec.material);
+    if let Some(size) = &spec.size {
+        let size = Vector3::new(size[0].si(), size[1].si(), size[2].si());
+        let shape = BodyShape::cuboid(size)
+            .map_err(|e| Error::invalid(scene_path, format!("key sleepers.size: {e}")))?;
+        let lift = Isometry3::translation(0.0, 0.0, 0.5 * size.z);
+        return Ok(Some(SleeperSource {
+            model: SleeperModel {
+                shape: Arc::new(shape),
+                frame: lift,
+                footprint: [size.x, size.y],
+                density,
+                material,
+            },
+            own_from_mesh: lift,
+            mesh: None,
+            size: Some([size.x, size.y, size.z]),
+        }));
+    }
+    let file = NscdScene::resolve(scene_path, spec.mesh.as_ref().expect("validated"));
+    let mesh = crate::mesh::read_msh(&file)
+        .map_err(|e| Error::invalid(scene_path, format!("key sleepers.mesh: {e}")))?;
+    let pieces = mesh_pieces(&mesh, &Pieces::Hull)
+        .map_err(|e| Error::invalid(scene_path, format!("key sleepers.mesh: {e}")))?;
+    let points = &pieces[0].1;
+    let (mut lo, mut hi) = (points[0], points[0]);
+    for p in points {
+        lo = lo.inf(p);
+        hi = hi.sup(p);
+    }
+    // The sleeper lies across the track (y): a mesh longer in x is turned about z.
+    let turn = if hi.x - lo.x > hi.y - lo.y {
+        UnitQuaternion::from_axis_angle(&Vector3::z_axis(), std::f64::consts::FRAC_PI_2)
+    } else {
+        UnitQuaternion::identity()
+    };
+    let centre = Vector3::new(0.5 * (lo.x + hi.x), 0.5 * (lo.y + hi.y), lo.z);
+    let own_from_mesh = Isometry3::from_parts(Translation3::from(-(turn * centre)), turn);
+    let own: Vec<Point3<f64>> = points.iter().map(|p| own_from_mesh * p).collect();
+    let principal = BodyShape::convex_hull(&own, &format!("key sleepers.mesh: {}", file.display()))
+        .map_err(|e| match e {
+            Error::Message(m) => Error::invalid(scene_path, m),
+            e => e,
+        })?;
+    let extent = turn * (hi - lo);
+    Ok(Some(SleeperSource {
+        model: SleeperModel {
+            shape: Arc::new(principal.shape),
+            frame: principal.pose,
+            footprint: [extent.x.abs(), extent.y.abs()],
+            density,
+            material,
+        },
+        own_from_mesh,
+        mesh: Some(file),
+        size: None,
+    }))
+}
+
+fn friction_tables(scene: &BedScene) -> (FrictionTable, FrictionTable) {
+    let mut table = FrictionTable::uniform(scene.material.len(), 0.0);
+    for f in &scene.friction {
+        table.set(
+            scene.material_index(&f.pair[0]),
+            scene.material_index(&f.pair[1]),
+            f.mu,
+        );
+    }
+    let mut raining = table.clone();
+    if let Some(mu) = scene.deposit.friction {
+        let s = scene.material_index(&scene.stones.material);
+        raining.set(s, s, mu);
+    }
+    (table, raining)
+}
+
+/// Runs the scene of `ctx`.
+pub fn run(ctx: &RunContext) -> Result<()> {
+    let threads = ctx.configure_threads()?;
+    let mut timer = PhaseTimer::new();
+    let (scene, inputs): (BedScene, _) = timer.time("read scene", || ctx.load_scene())?;
+    let directory = NscdScene::resolve(&ctx.scene_path, &scene.stones.directory);
+    let family = timer.time("read stones", || {
+        read_stone_shapes(&directory, scene.stones.scale)
+    })?;
+    if family.is_empty() {
+        return Err(Error::invalid(
+            &ctx.scene_path,
+            format!(
+                "key stones.directory: no stone_*.msh in {} (make meshes builds them)",
+                directory.display()
+            ),
+        ));
+    }
+    let sleeper = sleeper_source(&scene, &ctx.scene_path)?;
+    let (friction, rain_friction) = friction_tables(&scene);
+    let d = &scene.deposit;
+    let setup = DepositSetup {
+        family,
+        stone_density: scene.density(&scene.stones.material),
+        stone_material: scene.material_index(&scene.stones.material),
+        length: scene.bed.length.si(),
+        width: scene.bed.width.si(),
+        wall_material: scene.material_index(&scene.bed.wall_material),
+        params: StepParams {
+            dt: d.dt.si(),
+            theta: d.theta,
+            gravity: Vector3::new(0.0, 0.0, -9.81),
+            alert_distance: d.alert_distance.si(),
+        },
+        tolerance: d.tolerance,
+        max_sweeps: d.max_sweeps,
+        friction,
+        rain_friction,
+        settle_speed: d.settle_speed.si(),
+        max_phase_time: d.max_phase_time.si(),
+        max_stones: scene.stones.count.unwrap_or(usize::MAX),
+        seed: scene.seed,
+    };
+    let mut bed = Deposition::new(setup);
+    std::fs::create_dir_all(ctx.out_dir.join("frames")).map_err(|e| Error::io(&ctx.out_dir, e))?;
+    let depth = scene.bed.depth.si();
+    let crib_top = scene
+        .sleepers
+        .as_ref()
+        .map_or(depth, |s| depth + s.embed.si());
+    println!(
+        "ballast-pack: {} — bed {:.3} × {:.3} m, {} stone shapes (pitch {:.1} mm), {} sleepers, \
+         seed {}, {threads} threads",
+        ctx.scene_path.display(),
+        scene.bed.length.si(),
+        scene.bed.width.si(),
+        bed.setup.family.len(),
+        1e3 * bed.pitch(),
+        scene.sleepers.as_ref().map_or(0, |s| s.count),
+        scene.seed,
+    );
+
+    let mut csv = CsvSeries::create(
+        ctx.out_dir.join("deposit.csv"),
+        &[
+            "time_s",
+            "phase",
+            "stones",
+            "contacts",
+            "nlgs_sweeps",
+            "nlgs_error",
+            "kinetic_energy_J",
+            "max_interpenetration_m",
+        ],
+    )?;
+    let mut pvd = PvdWriter::create(ctx.out_dir.join("bed.pvd"))?;
+    let frame_interval = scene.output.frame_interval.si();
+    let mut next_frame = 0.0;
+    let mut frames = 0usize;
+    let mut phase_names: Vec<String> = Vec::new();
+    let mut failure: Option<Error> = None;
+    let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::stderr_with_hz(4));
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} {elapsed} {msg}").expect("valid template"),
+    );
+    let clock = Instant::now();
+    let mut observe = |record: &super::deposit::StepRecord, bodies: &[Body], roles: &[Role]| {
+        if failure.is_some() {
+            return;
+        }
+        let phase = match phase_names.iter().position(|p| p == record.phase) {
+            Some(k) => k,
+            None => {
+                phase_names.push(record.phase.to_string());
+                phase_names.len() - 1
+            }
+        };
+        let r = record.report;
+        let row = [
+            record.time,
+            phase as f64,
+            record.stones as f64,
+            r.contacts as f64,
+            r.nlgs.iterations as f64,
+            r.nlgs.error,
+            r.kinetic_energy,
+            r.max_interpenetration,
+        ];
+        if let Err(e) = csv.push(&row) {
+            failure = Some(e);
+            return;
+        }
+        if frame_interval > 0.0 && record.time >= next_frame {
+            next_frame = record.time + frame_interval;
+            let name = format!("frames/bed_{frames:04}.vtu");
+            let grid = bed_grid(bodies, roles);
+            if let Err(e) = grid.and_then(|g| pvd.write_frame(record.time, &name, &g)) {
+                failure = Some(e);
+                return;
+            }
+            frames += 1;
+        }
+        bar.set_message(format!(
+            "{}: t = {:.2} s, {} stones, KE {:.2e} J, {} contacts",
+            record.phase, record.time, record.stones, r.kinetic_energy, r.contacts
+        ));
+        bar.tick();
+    };
+
+    let nominal: Vec<[f64; 2]> = match &scene.sleepers {
+        Some(s) => (0..s.count)
+            .map(|k| {
+                let x = 0.5 * scene.bed.length.si()
+                    + (k as f64 - 0.5 * (s.count as f64 - 1.0)) * s.spacing.si();
+                [x, 0.0]
+            })
+            .collect(),
+        None => Vec::new(),
+    };
+    match &sleeper {
+        Some(source) => {
+            bed.fill("under-sleeper layer", 0.0, depth, &mut observe);
+            let placed: Vec<(SleeperModel, [f64; 2])> = nominal
+                .iter()
+                .map(|xy| (source.model.clone(), *xy))
+                .collect();
+            bed.lower_sleepers(&placed, &mut observe);
+            bed.fill("crib", depth, crib_top, &mut observe);
+        }
+        None => bed.fill("bed", 0.0, depth, &mut observe),
+    }
+    if let Some(c) = &scene.compaction {
+        bed.compact(
+            c.amplitude.si(),
+            c.frequency.si(),
+            c.duration.si(),
+            &mut observe,
+        );
+    }
+    bed.settle("final settle", &mut observe);
+    drop(observe);
+    bar.finish_and_clear();
+    if let Some(e) = failure {
+        return Err(e);
+    }
+    let wall_deposit = clock.elapsed();
+    for (name, t) in ["detect", "build", "solve", "update"]
+        .iter()
+        .zip(bed.phase_times)
+    {
+        timer.add(name, t);
+    }
+    let other = wall_deposit.saturating_sub(bed.stepping);
+    timer.add("frames and csv", other);
+
+    // Measures of the final bed.
+    let clock = Instant::now();
+    let final_contacts = bed.detect();
+    let (max_pen, mean_pen) = interpenetration(&final_contacts);
+    if std::env::var_os("BALLAST_DEBUG").is_some() {
+        let mut deep: Vec<_> = final_contacts.iter().filter(|c| c.gap < -1e-4).collect();
+        deep.sort_by(|a, b| a.gap.total_cmp(&b.gap));
+        for c in deep.iter().take(12) {
+            eprintln!(
+                "DEBUG {:?} {:?} gap {:.3e} n {:?} at {:?} ka {} kb {}",
+                bed.roles[c.key.body_a as usize],
+                bed.roles[c.key.body_b as usize],
+                c.gap,
+                c.normal,
+                c.point,
+                c.key.feature_a,
+                c.key.feature_b
+            );
+        }
+        eprintln!("DEBUG {} contacts deeper than 0.1 mm", deep.len());
+    }
+    let (coordination, coordination_walls) = coordination_numbers(&bed.roles, bed.last_contacts());
+    let diameters = bed.stone_diameters();
+    let d50 = median(&diameters);
+    let sleeper_boxes: Vec<(Point3<f64>, Point3<f64>)> = bed
+        .bodies
+        .iter()
+        .zip(&bed.roles)
+        .filter(|(_, r)| matches!(r, Role::Sleeper(_)))
+        .map(|(b, _)| {
+            let v = b.world_vertices();
+            let (mut lo, mut hi) = (v[0], v[0]);
+            for p in &v {
+                lo = lo.inf(p);
+                hi = hi.sup(p);
+            }
+            (lo, hi)
+        })
+        .collect();
+    let boxes = control_boxes(
+        bed.setup.length,
+        bed.setup.width,
+        depth,
+        &sleeper_boxes,
+        crib_top,
+        d50,
+    );
+    let solid = compactness(&bed.bodies, &bed.roles, &boxes);
+    let top = bed
+        .bodies
+        .iter()
+        .zip(&bed.roles)
+        .filter(|(_, r)| matches!(r, Role::Stone(_)))
+        .flat_map(|(b, _)| b.world_vertices())
+        .map(|p| p.z)
+        .fold(0.0, f64::max);
+    let container = ControlBox {
+        min: Point3::new(0.0, -0.5 * bed.setup.width, bed.floor_offset().min(0.0)),
+        max: Point3::new(bed.setup.length, 0.5 * bed.setup.width, f64::INFINITY),
+    };
+    let outside = stones_outside(&bed.bodies, &bed.roles, &container);
+    timer.add("measures", clock.elapsed());
+
+    // Files.
+    let clock = Instant::now();
+    let packing = packing_of(
+        &scene,
+        &bed,
+        sleeper.as_ref(),
+        d50,
+        crib_top.max(top),
+        &ctx.out_dir,
+    )?;
+    packing.write(&ctx.out_dir.join("packing.toml"))?;
+    let (stones, sleepers) = split(&bed.bodies, &bed.roles);
+    write_vtu(ctx.out_dir.join("stones.vtu"), &grains_grid(&stones, true)?)?;
+    if !sleepers.is_empty() {
+        write_vtu(
+            ctx.out_dir.join("sleepers.vtu"),
+            &grains_grid(&sleepers, true)?,
+        )?;
+    }
+    write_vtu(ctx.out_dir.join("control_boxes.vtu"), &boxes_grid(&solid)?)?;
+    let name = format!("frames/bed_{frames:04}.vtu");
+    pvd.write_frame(bed.time, &name, &bed_grid(&bed.bodies, &bed.roles)?)?;
+    timer.add("output", clock.elapsed());
+
+    let stepping = bed.stepping.as_secs_f64();
+    let settled = bed.phases.iter().all(|p| p.settled);
+    let phases: Vec<serde_json::Value> = bed
+        .phases
+        .iter()
+        .map(|p| {
+            json!({
+                "name": p.name, "time_s": p.time, "steps": p.steps, "settled": p.settled,
+                "inserted": p.inserted, "removed": p.removed,
+            })
+        })
+        .collect();
+    let compactness_json: Vec<serde_json::Value> = solid
+        .iter()
+        .map(|c| {
+            json!({
+                "box": c.name, "value": c.value,
+                "min_m": [c.bx.min.x, c.bx.min.y, c.bx.min.z],
+                "max_m": [c.bx.max.x, c.bx.max.y, c.bx.max.z],
+            })
+        })
+        .collect();
+    let summary = Summary::new(ctx, &inputs)
+        .figure("grains", diameters.len())
+        .figure("sleepers", sleepers.len())
+        .figure("d50_m", d50)
+        .figure("compactness", compactness_json)
+        .figure("max_interpenetration_m", max_pen)
+        .figure("mean_interpenetration_m", mean_pen)
+        .figure("max_interpenetration_over_d50", max_pen / d50)
+        .figure("mean_interpenetration_over_d50", mean_pen / d50)
+        .figure("coordination_number", coordination)
+        .figure("coordination_number_with_boundaries", coordination_walls)
+        .figure("stones_outside", outside)
+        .figure("bed_top_m", top)
+        .figure("floor_offset_m", bed.floor_offset())
+        .figure("settled", settled)
+        .figure("phases", phases)
+        .figure("steps", bed.steps)
+        .figure("simulated_time_s", bed.time)
+        .figure("stepping_s", stepping)
+        .figure(
+            "grains_steps_per_s",
+            bed.body_steps as f64 / stepping.max(1e-12),
+        )
+        .figure("seed", scene.seed)
+        .figure("threads", threads)
+        .wall_times(&timer);
+    write_json(ctx.out_dir.join("summary.json"), &summary.to_json())?;
+    println!(
+        "ballast-pack: {} stones (d50 {:.1} mm), {} sleepers, {} steps ({:.2} s simulated) in \
+         {stepping:.1} s, {:.3e} grains·steps/s{}",
+        diameters.len(),
+        1e3 * d50,
+        sleepers.len(),
+        bed.steps,
+        bed.time,
+        bed.body_steps as f64 / stepping.max(1e-12),
+        if settled {
+            ""
+        } else {
+            " — NOT SETTLED (see summary.json phases)"
+        }
+    );
+    println!(
+        "ballast-pack: interpenetration max {:.2e} m ({:.3} % d50), mean {:.2e} m; \
+         coordination {coordination:.2}; {outside} stones outside",
+        max_pen,
+        100.0 * max_pen / d50,
+        mean_pen
+    );
+    for c in &solid {
+        println!("ballast-pack: compactness {:<18} {:.4}", c.name, c.value);
+    }
+    println!(
+        "ballast-pack: wrote {}",
+        ctx.out_dir.join("packing.toml").display()
+    );
+    Ok(())
+}
+
+/// Stones and sleepers as two body lists (for their VTK files).
+fn split(bodies: &[Body], roles: &[Role]) -> (Vec<Body>, Vec<Body>) {
+    let pick = |want: fn(&Role) -> bool| {
+        bodies
+            .iter()
+            .zip(roles)
+            .filter(|(_, r)| want(r))
+            .map(|(b, _)| b.clone())
+            .collect::<Vec<_>>()
+    };
+    (
+        pick(|r| matches!(r, Role::Stone(_))),
+        pick(|r| matches!(r, Role::Sleeper(_))),
+    )
+}
+
+/// Stones and sleepers in one grid, cell field `sleeper` (1 on sleepers).
+fn bed_grid(bodies: &[Body], roles: &[Role]) -> Result<Grid> {
+    let mut grid = grains_grid(bodies, true)?;
+    let kinds: Vec<i32> = bodies
+        .iter()
+        .zip(roles)
+        .filter(|(b, _)| b.is_dynamic())
+        .flat_map(|(b, r)| {
+            std::iter::repeat_n(
+                i32::from(matches!(r, Role::Sleeper(_))),
+                b.shape.triangles.len(),
+            )
+        })
+        .collect();
+    grid.add_cell_field("sleeper", 1, kinds)?;
+    Ok(grid)
+}
+
+/// The control boxes as closed triangulated surfaces with their compactness.
+fn boxes_grid(boxes: &[Compactness]) -> Result<Grid> {
+    // Corner k has x from bit 0, y from bit 1, z from bit 2; two triangles per face.
+    const FACES: [[usize; 4]; 6] = [
+        [0, 2, 3, 1],
+        [4, 5, 7, 6],
+        [0, 1, 5, 4],
+        [2, 6, 7, 3],
+        [0, 4, 6, 2],
+        [1, 3, 7, 5],
+    ];
+    let mut points = Vec::new();
+    let mut triangles = Vec::new();
+    let mut values = Vec::new();
+    for c in boxes {
+        let base = points.len();
+        for k in 0..8 {
+            points.push([
+                if k & 1 == 0 { c.bx.min.x } else { c.bx.max.x },
+                if k & 2 == 0 { c.bx.min.y } else { c.bx.max.y },
+                if k & 4 == 0 { c.bx.min.z } else { c.bx.max.z },
+            ]);
+        }
+        for f in FACES {
+            triangles.push([base + f[0], base + f[1], base + f[2]]);
+            triangles.push([base + f[0], base + f[2], base + f[3]]);
+            values.extend([c.value, c.value]);
+        }
+    }
+    let mut grid = Grid::triangles(points, &triangles)?;
+    grid.add_cell_field("compactness", 1, values)?;
+    Ok(grid)
+}
+
+/// The packing file's content: mesh paths relative to the output directory.
+fn packing_of(
+    scene: &BedScene,
+    bed: &Deposition,
+    sleeper: Option<&SleeperSource>,
+    d50: f64,
+    top: f64,
+    out_dir: &Path,
+) -> Result<Packing> {
+    let relative = |file: &Path| -> Result<std::path::PathBuf> {
+        let absolute = std::fs::canonicalize(file).map_err(|e| Error::io(file, e))?;
+        let base = std::fs::canonicalize(out_dir).map_err(|e| Error::io(out_dir, e))?;
+        Ok(relative_path(&absolute, &base))
+    };
+    let mut meshes = Vec::new();
+    for stone in &bed.setup.family {
+        meshes.push(PackedMesh {
+            file: relative(&stone.file)?,
+            scale: stone.scale,
+        });
+    }
+    let sleeper_mesh = match sleeper.and_then(|s| s.mesh.as_ref()) {
+        Some(file) => {
+            meshes.push(PackedMesh {
+                file: relative(file)?,
+                scale: 1.0,
+            });
+            Some(meshes.len() - 1)
+        }
+        None => None,
+    };
+    let mut stones = Vec::new();
+    let mut sleepers = Vec::new();
+    for (body, role) in bed.bodies.iter().zip(&bed.roles) {
+        match role {
+            Role::Stone(f) => {
+                let pose = body.pose() * bed.setup.family[*f].mesh_pose.inverse();
+                stones.push(Placement::from_pose(Some(*f), None, &pose));
+            }
+            Role::Sleeper(_) => {
+                let source = sleeper.expect("sleepers come from a source");
+                let pose = body.pose() * source.model.frame.inverse() * source.own_from_mesh;
+                sleepers.push(Placement::from_pose(sleeper_mesh, source.size, &pose));
+            }
+            Role::Boundary => {}
+        }
+    }
+    Ok(Packing {
+        format: PACKING_FORMAT.to_string(),
+        seed: scene.seed,
+        d50_m: d50,
+        container_min: [0.0, -0.5 * bed.setup.width, 0.0],
+        container_max: [bed.setup.length, 0.5 * bed.setup.width, top],
+        sides: scene.bed.sides.clone(),
+        meshes,
+        stones,
+        sleepers,
+    })
+}
+
+/// `path` relative to `base` (both absolute, canonical).
+fn relative_path(path: &Path, base: &Path) -> std::path::PathBuf {
+    let p: Vec<_> = path.components().collect();
+    let b: Vec<_> = base.components().collect();
+    let common = p.iter().zip(&b).take_while(|(x, y)| x == y).count();
+    let mut out = std::path::PathBuf::new();
+    for _ in common..b.len() {
+        out.push("..");
+    }
+    for c in &p[common..] {
+        out.push(c);
+    }
+    out
+}

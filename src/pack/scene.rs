@@ -1,0 +1,345 @@
+//! The scene file of `ballast-pack SCENE.toml`: the stones, the bed and its sleepers,
+//! the deposition and compaction parameters. The only part of `pack` that knows TOML.
+//!
+//! ```toml
+//! seed = 1                              # the packing is a function of this seed
+//!
+//! [stones]
+//! directory = "../meshes/stones"        # the stone family (stone_*.msh), drawn at random
+//! material = "granite"
+//! scale = 1.0                           # factor on the family's size (grading shift)
+//! count = 500                           # optional cap on the number of stones
+//!
+//! [bed]
+//! length = "1.8 m"                      # x, along the track
+//! width = "1.2 m"                       # y, across
+//! depth = "0.3 m"                       # ballast under the sleepers' underside
+//! sides = "walls"                       # side condition in y ("walls" only, for now)
+//! wall_material = "steel"
+//!
+//! [sleepers]                            # optional: none for a plain box
+//! count = 3
+//! spacing = "0.6 m"
+//! size = ["0.26 m", "1.0 m", "0.2 m"]  # a cuboid ...
+//! # mesh = "../meshes/sleeper_type3.msh" # ... or the convex hull of a mesh
+//! embed = "0.1 m"                       # crib ballast height above the underside
+//! material = "concrete"
+//!
+//! [deposit]
+//! dt = "2 ms"
+//! theta = 1.0
+//! tolerance = 1e-4                      # NLGS
+//! max_sweeps = 300
+//! alert_distance = "2 mm"
+//! friction = 0.3                        # µ between stones while raining (then the table's)
+//! settle_speed = "5 mm/s"               # rms speed below which the bed has settled
+//! max_phase_time = "4 s"                # a phase that has not settled by then is reported
+//!
+//! [compaction]                          # optional: the floor vibrates vertically
+//! amplitude = "1 mm"
+//! frequency = "30 Hz"
+//! duration = "0.5 s"
+//!
+//! [[material]] / [[friction]]           # as in ballast-nscd scenes
+//! [output]
+//! frame_interval = "0.1 s"              # VTK frames of the deposition (0: none)
+//! ```
+
+use std::path::PathBuf;
+
+use serde::Deserialize;
+
+use crate::nscd::scene::{FrictionSpec, MaterialSpec};
+use crate::scene::{Frequency, Length, Time, Validate, Validator, Velocity};
+
+/// A whole bed scene.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BedScene {
+    /// Seed of every random draw (stone choice, orientation, lattice jitter).
+    #[serde(default = "one")]
+    pub seed: u64,
+    /// The stones.
+    pub stones: StonesSpec,
+    /// The container and the layer.
+    pub bed: BedSpec,
+    /// Sleepers (none for a plain box).
+    #[serde(default)]
+    pub sleepers: Option<SleepersSpec>,
+    /// Time stepping and settling.
+    pub deposit: DepositSpec,
+    /// Optional vibration of the floor.
+    #[serde(default)]
+    pub compaction: Option<CompactionSpec>,
+    /// Materials (densities of stones and sleepers).
+    pub material: Vec<MaterialSpec>,
+    /// Friction per pair of materials.
+    #[serde(default)]
+    pub friction: Vec<FrictionSpec>,
+    /// VTK frames of the deposition.
+    #[serde(default)]
+    pub output: OutputSpec,
+}
+
+fn one() -> u64 {
+    1
+}
+
+/// `[stones]`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StonesSpec {
+    /// Directory of `stone_*.msh` (relative to the scene file).
+    pub directory: PathBuf,
+    /// Material name.
+    pub material: String,
+    /// Factor on the family's coordinates.
+    #[serde(default = "unit")]
+    pub scale: f64,
+    /// Cap on the number of stones.
+    #[serde(default)]
+    pub count: Option<usize>,
+}
+
+fn unit() -> f64 {
+    1.0
+}
+
+/// `[bed]`: a box `[0, length] × [−width/2, width/2]`, floor at z = 0.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BedSpec {
+    /// Extent along x (m).
+    pub length: Length,
+    /// Extent along y (m).
+    pub width: Length,
+    /// Ballast under the sleepers' underside, or the whole layer without sleepers (m).
+    pub depth: Length,
+    /// Side condition in y: `walls`.
+    #[serde(default = "walls")]
+    pub sides: String,
+    /// Material of the floor and walls.
+    pub wall_material: String,
+}
+
+fn walls() -> String {
+    "walls".to_string()
+}
+
+/// `[sleepers]`: `count` sleepers across the track, `spacing` apart along x, centred.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SleepersSpec {
+    /// How many.
+    pub count: usize,
+    /// Centre-to-centre distance along x.
+    pub spacing: Length,
+    /// A cuboid sleeper: extents along x, y, z.
+    #[serde(default)]
+    pub size: Option<[Length; 3]>,
+    /// Or a sleeper mesh (its convex hull), placed with its bounding box centred in x
+    /// and y and its underside at the bed's depth.
+    #[serde(default)]
+    pub mesh: Option<PathBuf>,
+    /// Crib ballast height above the sleepers' underside.
+    pub embed: Length,
+    /// Material name.
+    pub material: String,
+}
+
+/// `[deposit]`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DepositSpec {
+    /// Time step.
+    pub dt: Time,
+    /// θ of the θ-method (1 closes impacts at zero gap; see docs/nscd.md).
+    #[serde(default = "unit")]
+    pub theta: f64,
+    /// NLGS tolerance.
+    pub tolerance: f64,
+    /// NLGS sweep cap.
+    pub max_sweeps: usize,
+    /// Alert distance of the contact detection.
+    pub alert_distance: Length,
+    /// µ between stones while raining (the friction table applies afterwards).
+    #[serde(default)]
+    pub friction: Option<f64>,
+    /// The bed has settled when the rms speed of the stones is below this.
+    pub settle_speed: Velocity,
+    /// A phase (raining, settling, compaction) stops after this simulated time.
+    pub max_phase_time: Time,
+}
+
+/// `[compaction]`: the floor vibrates vertically, `A sin(2πft)`, whole cycles.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CompactionSpec {
+    /// Amplitude of the floor's displacement.
+    pub amplitude: Length,
+    /// Frequency.
+    pub frequency: Frequency,
+    /// Duration (rounded to whole cycles).
+    pub duration: Time,
+}
+
+/// `[output]`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutputSpec {
+    /// Simulated time between VTK frames of the deposition; 0 for none (the final
+    /// state is always written).
+    #[serde(default = "default_frame_interval")]
+    pub frame_interval: Time,
+}
+
+fn default_frame_interval() -> Time {
+    Time::parse("0.1 s").expect("a valid time")
+}
+
+impl Default for OutputSpec {
+    fn default() -> Self {
+        OutputSpec {
+            frame_interval: default_frame_interval(),
+        }
+    }
+}
+
+impl BedScene {
+    /// Index of material `name` (0 when unknown: validation rejects that).
+    pub fn material_index(&self, name: &str) -> u32 {
+        self.material
+            .iter()
+            .position(|m| m.name == name)
+            .unwrap_or(0) as u32
+    }
+
+    /// Density of material `name` (kg/m³; 0 when not given: validation rejects that
+    /// for stones and sleepers).
+    pub fn density(&self, name: &str) -> f64 {
+        self.material
+            .iter()
+            .find(|m| m.name == name)
+            .and_then(|m| m.density)
+            .map_or(0.0, |d| d.si())
+    }
+}
+
+impl Validate for BedScene {
+    fn validate(&self, v: &mut Validator) {
+        let names: Vec<&str> = self.material.iter().map(|m| m.name.as_str()).collect();
+        let material = |v: &mut Validator, key: &str, name: &str, needs_density: bool| match self
+            .material
+            .iter()
+            .find(|m| m.name == name)
+        {
+            None => v.fail(
+                key,
+                format!(
+                    "unknown material \"{name}\" (defined: {})",
+                    names.join(", ")
+                ),
+            ),
+            Some(m) if needs_density && m.density.is_none() => v.fail(
+                key,
+                format!("material \"{name}\" needs a density (it moves)"),
+            ),
+            Some(_) => {}
+        };
+        material(v, "stones.material", &self.stones.material, true);
+        material(v, "bed.wall_material", &self.bed.wall_material, false);
+        if let Some(s) = &self.sleepers {
+            material(v, "sleepers.material", &s.material, true);
+        }
+        for (i, m) in self.material.iter().enumerate() {
+            if let Some(d) = m.density {
+                v.positive(&format!("material[{i}].density"), d);
+            }
+            if self.material[..i].iter().any(|o| o.name == m.name) {
+                v.fail(
+                    &format!("material[{i}].name"),
+                    format!("\"{}\" is defined twice", m.name),
+                );
+            }
+        }
+        for (i, f) in self.friction.iter().enumerate() {
+            for (k, name) in f.pair.iter().enumerate() {
+                material(v, &format!("friction[{i}].pair[{k}]"), name, false);
+            }
+            v.check(
+                &format!("friction[{i}].mu"),
+                f.mu.is_finite() && f.mu >= 0.0,
+                "must be a finite number ≥ 0",
+            );
+        }
+        v.check(
+            "stones.scale",
+            self.stones.scale.is_finite() && self.stones.scale > 0.0,
+            "must be a positive number",
+        );
+        if let Some(n) = self.stones.count {
+            v.check("stones.count", n > 0, "must be at least 1");
+        }
+        v.positive("bed.length", self.bed.length);
+        v.positive("bed.width", self.bed.width);
+        v.positive("bed.depth", self.bed.depth);
+        v.check(
+            "bed.sides",
+            self.bed.sides == "walls",
+            format!(
+                "\"{}\" is not supported: use \"walls\" (periodic sides are not built yet)",
+                self.bed.sides
+            ),
+        );
+        if let Some(s) = &self.sleepers {
+            v.check("sleepers.count", s.count > 0, "must be at least 1");
+            v.positive("sleepers.spacing", s.spacing);
+            v.non_negative("sleepers.embed", s.embed);
+            v.check(
+                "sleepers",
+                s.size.is_some() != s.mesh.is_some(),
+                "give exactly one of size or mesh",
+            );
+            if let Some(size) = &s.size {
+                for (k, l) in size.iter().enumerate() {
+                    v.positive(&format!("sleepers.size[{k}]"), *l);
+                }
+                v.check(
+                    "sleepers.spacing",
+                    s.spacing.si() > size[0].si(),
+                    "must exceed the sleeper's size along x (the cribs would be empty)",
+                );
+                v.check(
+                    "sleepers.count",
+                    s.count as f64 * s.spacing.si() <= self.bed.length.si() + 1e-12,
+                    "count × spacing must fit in bed.length",
+                );
+            }
+        }
+        let d = &self.deposit;
+        v.positive("deposit.dt", d.dt);
+        v.in_range("deposit.theta", d.theta, 0.5, 1.0);
+        v.check(
+            "deposit.tolerance",
+            d.tolerance.is_finite() && d.tolerance > 0.0,
+            "must be a positive number",
+        );
+        v.check("deposit.max_sweeps", d.max_sweeps > 0, "must be at least 1");
+        v.non_negative("deposit.alert_distance", d.alert_distance);
+        if let Some(mu) = d.friction {
+            v.check(
+                "deposit.friction",
+                mu.is_finite() && mu >= 0.0,
+                "must be a finite number ≥ 0",
+            );
+        }
+        v.positive("deposit.settle_speed", d.settle_speed);
+        v.positive("deposit.max_phase_time", d.max_phase_time);
+        if let Some(c) = &self.compaction {
+            v.positive("compaction.amplitude", c.amplitude);
+            v.positive("compaction.frequency", c.frequency);
+            v.positive("compaction.duration", c.duration);
+        }
+        v.non_negative("output.frame_interval", self.output.frame_interval);
+    }
+}
