@@ -1,7 +1,8 @@
 # ballast: geometry -> meshes -> solvers -> VTK/CSV -> charts.
 #
 #   make          set up what is missing, build, mesh everything, run the default scenes
-#                 (mesh gallery, then the QDEM quick scenes and their chart)
+#                 (mesh gallery, the QDEM quick scenes and their chart, then the quick
+#                 ballast bed of ballast-pack and its chart)
 #   make test     set up, check formatting and lints, run every test
 #   make meshes   mesh every geo/*.geo and the stone family
 #   make paper    the QDEM scenes at the paper's resolution and the convergence table
@@ -38,7 +39,7 @@ include $(sort $(wildcard mk/*.mk))
 
 .PHONY: all setup build meshes gallery test lint clean distclean readme-figure
 
-all: gallery qdem-quick $(QDEM_CHART)
+all: gallery qdem-quick $(QDEM_CHART) pack-quick
 
 ## Set-up: Debian packages the build links (mk/system-deps.mk) and a project-local venv
 ## with the pinned Python tools.

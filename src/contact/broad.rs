@@ -38,10 +38,20 @@ pub fn aabb_of(points: &[Point3<f64>], pose: &Isometry3<f64>) -> Aabb {
     Aabb { min, max }
 }
 
-/// Candidate pairs `(i, j)`, `i < j`, sorted, of bodies within `alert` of each other, at
-/// least one of them `movable`.
-pub fn candidate_pairs(shapes: &[BroadShape], movable: &[bool], alert: f64) -> Vec<(u32, u32)> {
+/// Candidate pairs `(i, j)`, `i < j`, sorted, of bodies within `alert` of each other, or
+/// within `reach[i] + reach[j]` (each body's own reach, e.g. how far it can move in a
+/// step; an empty slice for none), at least one of them `movable`. Each box is
+/// inflated by `max(alert / 2, reach)`, so every pair within `max(alert, reach_i +
+/// reach_j)` is found.
+pub fn candidate_pairs(
+    shapes: &[BroadShape],
+    movable: &[bool],
+    alert: f64,
+    reach: &[f64],
+) -> Vec<(u32, u32)> {
     let half = 0.5 * alert;
+    let reach_of = |i: usize| reach.get(i).copied().unwrap_or(0.0);
+    let inflation = |i: usize| half.max(reach_of(i));
     let mut bounded: Vec<(u32, Aabb)> = shapes
         .iter()
         .enumerate()
@@ -49,8 +59,8 @@ pub fn candidate_pairs(shapes: &[BroadShape], movable: &[bool], alert: f64) -> V
             BroadShape::Bounded(b) => Some((
                 i as u32,
                 Aabb {
-                    min: b.min - Vector3::repeat(half),
-                    max: b.max + Vector3::repeat(half),
+                    min: b.min - Vector3::repeat(inflation(i)),
+                    max: b.max + Vector3::repeat(inflation(i)),
                 },
             )),
             BroadShape::HalfSpace(..) => None,
@@ -83,10 +93,12 @@ pub fn candidate_pairs(shapes: &[BroadShape], movable: &[bool], alert: f64) -> V
             // The box's lowest point along the normal, relative to the plane.
             let centre = Point3::from(0.5 * (b.min.coords + b.max.coords));
             let half_size = 0.5 * (b.max - b.min);
-            let reach = normal.x.abs() * half_size.x
+            let extent = normal.x.abs() * half_size.x
                 + normal.y.abs() * half_size.y
                 + normal.z.abs() * half_size.z;
-            if normal.dot(&(centre - origin)) - reach <= half {
+            // The body's own distance from the plane (its box without the inflation).
+            let gap = normal.dot(&(centre - origin)) - extent + inflation(*i as usize);
+            if gap <= alert.max(reach_of(*i as usize) + reach_of(h)) {
                 let h = h as u32;
                 pairs.push((h.min(*i), h.max(*i)));
             }
@@ -119,16 +131,16 @@ mod tests {
         ];
         let movable = [true, true, true, true, false];
         assert_eq!(
-            candidate_pairs(&shapes, &movable, 0.1),
+            candidate_pairs(&shapes, &movable, 0.1, &[]),
             vec![(0, 1), (0, 3), (0, 4), (1, 3), (1, 4), (2, 4)]
         );
         assert_eq!(
-            candidate_pairs(&shapes, &movable, 0.01),
+            candidate_pairs(&shapes, &movable, 0.01, &[]),
             vec![(0, 3), (0, 4), (1, 4), (2, 4)]
         );
         // Two fixed bodies never pair.
         assert_eq!(
-            candidate_pairs(&shapes, &[false, false, false, false, false], 0.1),
+            candidate_pairs(&shapes, &[false, false, false, false, false], 0.1, &[]),
             vec![]
         );
     }

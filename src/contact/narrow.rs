@@ -46,6 +46,10 @@ use super::{ContactKey, ContactPoint};
 pub struct Detector {
     /// Pairs whose gap is at most this (m) give contact points.
     pub alert_distance: f64,
+    /// Each body's own reach (m; empty for none): a pair within `reach_i + reach_j`
+    /// gives contact points too, so a fast body is seen by its neighbours without
+    /// inflating every other pair's alert distance.
+    pub reach: Vec<f64>,
     broad: Vec<BroadShape>,
 }
 
@@ -54,6 +58,7 @@ impl Detector {
     pub fn new(alert_distance: f64) -> Self {
         Detector {
             alert_distance,
+            reach: Vec::new(),
             broad: Vec::new(),
         }
     }
@@ -78,12 +83,13 @@ impl Detector {
                 ),
             });
         }
-        for (i, j) in candidate_pairs(&self.broad, movable, self.alert_distance) {
+        let reach = |i: usize| self.reach.get(i).copied().unwrap_or(0.0);
+        for (i, j) in candidate_pairs(&self.broad, movable, self.alert_distance, &self.reach) {
             let (i, j) = (i as usize, j as usize);
             pair_contacts(
                 (i, colliders[i], &poses[i]),
                 (j, colliders[j], &poses[j]),
-                self.alert_distance,
+                self.alert_distance.max(reach(i) + reach(j)),
                 out,
             );
         }

@@ -48,6 +48,7 @@ pub fn run(ctx: &RunContext) -> Result<()> {
         theta: scene.time.theta,
         gravity: scene.gravity.vector(),
         alert_distance: scene.solver.alert_distance.si(),
+        depenetration_speed: scene.solver.depenetration_speed.map_or(0.0, |v| v.si()),
     };
     let options = NlgsOptions {
         stopping: match scene.solver.sweeps {

@@ -14,6 +14,7 @@
 //! tolerance = 1e-8                  # or: sweeps = 50 (fixed count, the seed's n_DDM)
 //! max_sweeps = 2000
 //! alert_distance = "1 mm"
+//! depenetration_speed = "2 mm/s"    # optional: push existing overlaps out (packings)
 //!
 //! [gravity]
 //! magnitude = "9.81 m/s^2"
@@ -156,6 +157,10 @@ pub struct SolverSpec {
     /// Cap on sweeps under a tolerance.
     #[serde(default = "default_max_sweeps")]
     pub max_sweeps: usize,
+    /// Speed at which existing interpenetration is pushed out (0: never, the seed's
+    /// law; see [`super::step::StepParams::depenetration_speed`]).
+    #[serde(default)]
+    pub depenetration_speed: Option<Velocity>,
     /// A fixed number of sweeps per step instead of a tolerance.
     #[serde(default)]
     pub sweeps: Option<usize>,
@@ -542,6 +547,9 @@ impl Validate for NscdScene {
             "must be at least 1",
         );
         v.non_negative("solver.alert_distance", self.solver.alert_distance);
+        if let Some(speed) = self.solver.depenetration_speed {
+            v.non_negative("solver.depenetration_speed", speed);
+        }
         v.non_negative("gravity.magnitude", self.gravity.magnitude);
         if let Some(a) = self.gravity.incline {
             v.in_range(

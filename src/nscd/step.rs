@@ -2,9 +2,9 @@
 //!
 //! [`MoreauJean::step`] runs, each with its own timer:
 //! 1. **detect**: contact points at the start configuration, kept when their gap is
-//!    within the alert distance (gap prediction; at least twice the largest distance a
-//!    body point can travel in the step, so no contact closes unseen), ordered from the top down along
-//!    gravity (the NLGS order);
+//!    within the alert distance or within the two bodies' reaches (gap prediction; a
+//!    body's reach is twice the distance its points can travel in the step, so no
+//!    contact closes unseen), ordered from the top down along gravity (the NLGS order);
 //! 2. **build**: local frames, lever arms, friction per material pair, the gap shift of
 //!    each contact's normal velocity, warm-start impulses by contact identity, and the
 //!    free velocities `V_free = V_i + h M⁻¹ F_ext` (gyroscopic term explicit);
@@ -20,7 +20,10 @@
 //! but not cross (g_{i+1} ≥ 0); one already closed (g* ≤ 0) gets Moreau's inelastic
 //! `u_n^{i+1} ≥ 0`, which neither pushes it apart (no energy put in) nor lets it sink
 //! further. Existing interpenetration is not corrected; with θ = 1 an impact closes
-//! exactly at zero gap, with θ < 1 it may sink up to h(1 − θ)|u_n^i|.
+//! exactly at zero gap, with θ < 1 it may sink up to h(1 − θ)|u_n^i|. Only when
+//! [`StepParams::depenetration_speed`] is set (packings, not the seed's scenes) does a
+//! closed contact get `ũ_n = u_n^{i+1} + max(g*/(θh), −v_dep)`, which pushes an
+//! overlap out at most at that speed.
 
 use std::time::{Duration, Instant};
 
@@ -42,6 +45,10 @@ pub struct StepParams {
     pub gravity: Vector3<f64>,
     /// Alert distance of contact detection (m).
     pub alert_distance: f64,
+    /// Largest speed (m/s) at which an existing interpenetration is pushed out; 0 (the
+    /// seed's law) leaves it as it is. A position correction, not mechanics: for
+    /// building packings, where an unconverged step's overlap must not stay.
+    pub depenetration_speed: f64,
 }
 
 /// Friction coefficients per pair of materials (symmetric).
@@ -161,6 +168,8 @@ impl MoreauJean {
     /// the final interpenetration.
     pub fn detect(&mut self, bodies: &[Body]) -> Vec<ContactPoint> {
         let mut out = Vec::new();
+        self.detector.alert_distance = self.params.alert_distance;
+        self.detector.reach.clear();
         detect_into(&mut self.detector, bodies, &mut out);
         out
     }
@@ -176,17 +185,21 @@ impl MoreauJean {
         // 1. Detect at the start configuration.
         let clock = Instant::now();
         self.points.clear();
-        // Gap prediction needs every contact that can close within the step: the alert
-        // distance is at least twice the largest distance a body point moves in h.
-        let fastest = bodies
-            .iter()
-            .filter(|b| !matches!(b.motion, Motion::Static))
-            .map(|b| b.velocity.norm() + b.angular_velocity.norm() * b.shape.bounding_radius())
-            .fold(0.0, f64::max);
-        self.detector.alert_distance = self
-            .params
-            .alert_distance
-            .max(2.0 * dt * (fastest + dt * gravity.norm()));
+        // Gap prediction needs every contact that can close within the step: a pair is
+        // detected within the alert distance or within the sum of its bodies' reaches,
+        // twice the distance each body's points can move in h.
+        self.detector.alert_distance = self.params.alert_distance;
+        self.detector.reach.clear();
+        self.detector.reach.extend(bodies.iter().map(|b| {
+            if matches!(b.motion, Motion::Static) {
+                0.0
+            } else {
+                let speed =
+                    b.velocity.norm() + b.angular_velocity.norm() * b.shape.bounding_radius();
+                let fall = if b.is_dynamic() { dt * gravity.norm() } else { 0.0 };
+                2.0 * dt * (speed + fall)
+            }
+        }));
         detect_into(&mut self.detector, bodies, &mut self.points);
         // NLGS order: from the top down along gravity, so that one sweep carries the
         // weight of a column down to its base (bottom-up, it would take one sweep per
@@ -247,7 +260,9 @@ impl MoreauJean {
             let u_start =
                 frame[0].dot(&(point_velocity(b, &arms[1]) - point_velocity(a, &arms[0])));
             let predicted = c.gap + dt * (1.0 - theta) * u_start;
-            let shift = predicted.max(0.0) / (theta * dt);
+            // Open: may close but not cross. Closed (predicted ≤ 0): u_n ≥ 0, or with a
+            // depenetration speed u_n ≥ min(−g*/(θh), that speed).
+            let shift = (predicted / (theta * dt)).max(-self.params.depenetration_speed);
             self.rows.push(ContactRow {
                 bodies: [c.key.body_a, c.key.body_b],
                 frame,

@@ -21,6 +21,13 @@
 //! the stones whose mass centre ends above the level are then removed (strike-off, as a
 //! screed would) and the bed settles again.
 //!
+//! # Drag
+//! Stones landing at a few m/s on a heap make deep transient overlaps and slow
+//! settling. A linear drag (relaxation time τ, terminal speed g τ; as a packing
+//! generator's numerical damping, not mechanics) may act while raining and settling;
+//! the final settle runs without it, so the bed's last state is in equilibrium under
+//! gravity and contact alone.
+//!
 //! # Settling
 //! A phase ends when the rms speed of the dynamic bodies, √(2 KE / Σm), is below the
 //! scene's `settle_speed`, or after `max_phase_time` (then reported as not settled).
@@ -42,8 +49,13 @@ use crate::nscd::step::{FrictionTable, MoreauJean, SolvedContact, StepParams, St
 /// deposit of angular grains, so the heap overfills the level before the strike-off).
 pub const FILL_FRACTION: f64 = 0.62;
 
-/// Random plan positions tried for one stone of the column (the lowest is kept).
+/// Plan positions clear of the sleepers tried for one stone of the column (the lowest
+/// is kept).
 pub const PLACEMENT_TRIES: usize = 8;
+
+/// Random plan positions drawn for one stone at most (those over a sleeper are drawn
+/// again); a stone that finds no clear one is not inserted.
+pub const PLACEMENT_DRAWS: usize = 200;
 
 /// What a body of the bed is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -104,6 +116,9 @@ pub struct DepositSetup {
     pub max_phase_time: f64,
     /// Cap on the number of stones.
     pub max_stones: usize,
+    /// Relaxation time τ of a linear drag on the stones while raining and settling
+    /// (terminal speed g τ); `None`: no drag. The final settle runs without it.
+    pub drag_time: Option<f64>,
     /// Seed.
     pub seed: u64,
 }
@@ -159,6 +174,8 @@ pub struct Deposition {
     /// Phases done.
     pub phases: Vec<PhaseReport>,
     engine: MoreauJean,
+    /// Whether the drag acts (off for the final settle).
+    drag: bool,
     random: SplitMix,
     pitch: f64,
     inserted: usize,
@@ -208,6 +225,7 @@ impl Deposition {
             stepping: Duration::ZERO,
             phases: Vec::new(),
             engine,
+            drag: true,
             random,
             inserted: 0,
         }
@@ -266,6 +284,14 @@ impl Deposition {
         } else {
             &self.setup.friction
         };
+        if let (Some(tau), true) = (self.setup.drag_time, self.drag) {
+            // Exact decay of a linear drag over the step, applied before it.
+            let factor = (-self.setup.params.dt / tau).exp();
+            for b in self.bodies.iter_mut().filter(|b| b.is_dynamic()) {
+                b.velocity *= factor;
+                b.angular_velocity *= factor;
+            }
+        }
         let clock = Instant::now();
         let report = self.engine.step(&mut self.bodies, self.time, friction);
         self.stepping += clock.elapsed();
@@ -333,7 +359,7 @@ impl Deposition {
     /// Inserts a column of `wanted` stones above every body by ballistic deposition of
     /// their bounding spheres: each stone (shape drawn from the family) tries
     /// [`PLACEMENT_TRIES`] random plan positions clear of the walls and of the sleeper
-    /// footprints; at each, its sphere is lowered from above until it rests on the plane
+    /// footprints (drawing at most [`PLACEMENT_DRAWS`]); at each, its sphere is lowered from above until it rests on the plane
     /// z = top or on a sphere already in the column; the lowest of the tries is kept.
     /// No two spheres overlap, so no two inserted stones do, nor a stone and anything
     /// below the column. Returns how many went in (a stone too large for the container,
@@ -350,8 +376,9 @@ impl Deposition {
             let family = self.random.below(self.setup.family.len());
             let r = self.setup.family[family].radius();
             let mut best: Option<Vector3<f64>> = None;
-            for _ in 0..PLACEMENT_TRIES {
-                if l < 2.0 * r || w < 2.0 * r {
+            let mut tries = 0;
+            for _ in 0..PLACEMENT_DRAWS {
+                if l < 2.0 * r || w < 2.0 * r || tries == PLACEMENT_TRIES {
                     break;
                 }
                 let x = r + (l - 2.0 * r) * self.random.next_f64();
@@ -364,6 +391,7 @@ impl Deposition {
                 if on_sleeper {
                     continue;
                 }
+                tries += 1;
                 let (cx, cy) = key(x, y);
                 let mut z = base + r;
                 for i in cx - 1..=cx + 1 {
@@ -496,6 +524,11 @@ impl Deposition {
             }
         }
         false
+    }
+
+    /// Switches the drag on or off (it is on from the start when the setup has one).
+    pub fn set_drag(&mut self, on: bool) {
+        self.drag = on;
     }
 
     /// Lets the bed settle with the final friction table (a phase of its own).

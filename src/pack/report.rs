@@ -23,7 +23,8 @@ pub struct Compactness {
 /// The control boxes of a bed `[0, length] × [−width/2, width/2]` with its sleepers'
 /// boxes (min and max corners, world): under each sleeper (its footprint, from `margin`
 /// above the floor to its underside, `margin` in from the side walls), in each crib
-/// (between two sleepers, from `margin` to `crib_top`), and the whole bed below the
+/// (between two sleepers, from `margin` to `margin` below `crib_top`: the struck-off
+/// surface is as loose as a wall), and the whole bed below the
 /// lowest underside (or `depth` without sleepers), `margin` in from every wall.
 /// `margin` (one d50) keeps the walls' layering out of the measure.
 pub fn control_boxes(
@@ -59,7 +60,7 @@ pub fn control_boxes(
             format!("crib_{}_{}", k + 1, k + 2),
             ControlBox {
                 min: Point3::new(left.1.x, left.0.y.max(y_lo), margin),
-                max: Point3::new(right.0.x, left.1.y.min(y_hi), crib_top),
+                max: Point3::new(right.0.x, left.1.y.min(y_hi), crib_top - margin),
             },
         ));
     }
@@ -184,7 +185,7 @@ mod tests {
         );
         let crib = boxes[3].1;
         assert_eq!((crib.min.x, crib.max.x), (0.45, 0.8));
-        assert_eq!((crib.min.z, crib.max.z), (0.04, 0.4));
+        assert_eq!((crib.min.z, crib.max.z), (0.04, 0.4 - 0.04));
         let under = boxes[1].1;
         assert_eq!((under.min.y, under.max.y, under.max.z), (-0.5, 0.5, 0.3));
     }

@@ -159,6 +159,7 @@ pub fn run(ctx: &RunContext) -> Result<()> {
             theta: d.theta,
             gravity: Vector3::new(0.0, 0.0, -9.81),
             alert_distance: d.alert_distance.si(),
+            depenetration_speed: d.depenetration_speed.map_or(0.0, |v| v.si()),
         },
         tolerance: d.tolerance,
         max_sweeps: d.max_sweeps,
@@ -167,6 +168,7 @@ pub fn run(ctx: &RunContext) -> Result<()> {
         settle_speed: d.settle_speed.si(),
         max_phase_time: d.max_phase_time.si(),
         max_stones: scene.stones.count.unwrap_or(usize::MAX),
+        drag_time: d.drag_time.map(|t| t.si()),
         seed: scene.seed,
     };
     let mut bed = Deposition::new(setup);
@@ -277,6 +279,8 @@ pub fn run(ctx: &RunContext) -> Result<()> {
         }
         None => bed.fill("bed", 0.0, depth, &mut observe),
     }
+    // Compaction and the final settle run under gravity and contact alone.
+    bed.set_drag(false);
     if let Some(c) = &scene.compaction {
         bed.compact(
             c.amplitude.si(),

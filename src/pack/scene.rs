@@ -31,9 +31,11 @@
 //! tolerance = 1e-4                      # NLGS
 //! max_sweeps = 300
 //! alert_distance = "2 mm"
+//! depenetration_speed = "2 mm/s"        # overlaps of unconverged steps pushed out
 //! friction = 0.3                        # µ between stones while raining (then the table's)
 //! settle_speed = "5 mm/s"               # rms speed below which the bed has settled
 //! max_phase_time = "4 s"                # a phase that has not settled by then is reported
+//! drag_time = "0.1 s"                   # optional drag while raining (terminal 1 m/s)
 //!
 //! [compaction]                          # optional: the floor vibrates vertically
 //! amplitude = "1 mm"
@@ -162,6 +164,10 @@ pub struct DepositSpec {
     pub max_sweeps: usize,
     /// Alert distance of the contact detection.
     pub alert_distance: Length,
+    /// Speed at which the engine pushes existing overlaps out (unconverged steps under
+    /// a deep heap leave some; see `StepParams::depenetration_speed`).
+    #[serde(default)]
+    pub depenetration_speed: Option<Velocity>,
     /// µ between stones while raining (the friction table applies afterwards).
     #[serde(default)]
     pub friction: Option<f64>,
@@ -169,6 +175,10 @@ pub struct DepositSpec {
     pub settle_speed: Velocity,
     /// A phase (raining, settling, compaction) stops after this simulated time.
     pub max_phase_time: Time,
+    /// Relaxation time of a linear drag on the stones while raining and settling
+    /// (terminal speed g τ; none by default). The final settle runs without it.
+    #[serde(default)]
+    pub drag_time: Option<Time>,
 }
 
 /// `[compaction]`: the floor vibrates vertically, `A sin(2πft)`, whole cycles.
@@ -326,6 +336,9 @@ impl Validate for BedScene {
         );
         v.check("deposit.max_sweeps", d.max_sweeps > 0, "must be at least 1");
         v.non_negative("deposit.alert_distance", d.alert_distance);
+        if let Some(speed) = d.depenetration_speed {
+            v.non_negative("deposit.depenetration_speed", speed);
+        }
         if let Some(mu) = d.friction {
             v.check(
                 "deposit.friction",
@@ -335,6 +348,9 @@ impl Validate for BedScene {
         }
         v.positive("deposit.settle_speed", d.settle_speed);
         v.positive("deposit.max_phase_time", d.max_phase_time);
+        if let Some(tau) = d.drag_time {
+            v.positive("deposit.drag_time", tau);
+        }
         if let Some(c) = &self.compaction {
             v.positive("compaction.amplitude", c.amplitude);
             v.positive("compaction.frequency", c.frequency);

@@ -1,0 +1,21 @@
+# ballast-pack (issue #6): ballast beds by gravity deposition, scenes/bed.toml. The quick
+# preset and its chart end the default `make`; the larger presets are long runs.
+# Included by the main Makefile, which defines PY, RELEASE, STONE_MESHES, VENV_STAMP.
+
+PACK_QUICK := results/bed-quick/summary.json
+PACK_CHART := results/bed_quick.png
+PACK_PRESETS := table3 tamping7 impact
+
+.PHONY: pack-quick pack-presets
+
+pack-quick: $(PACK_CHART)
+$(PACK_QUICK): scenes/bed.toml $(STONE_MESHES) meshes/sleeper_type3.msh $(RELEASE)/ballast-pack
+	$(RELEASE)/ballast-pack $< --preset quick --out $(@D)
+$(PACK_CHART): tools/pack_report.py $(PACK_QUICK) | $(VENV_STAMP)
+	$(PY) $< chart $(dir $(PACK_QUICK)) $@
+
+## The seed-sized beds (hours each on 2 cores): `make pack-presets`, not part of tests.
+pack-presets: $(PACK_PRESETS:%=results/bed-%/summary.json) | $(VENV_STAMP)
+	$(PY) tools/pack_report.py table $(PACK_QUICK:%/summary.json=%) $(^:%/summary.json=%)
+results/bed-%/summary.json: scenes/bed.toml $(STONE_MESHES) meshes/sleeper_type3.msh | $(RELEASE)/ballast-pack
+	$(RELEASE)/ballast-pack $< --preset $* --out $(@D)
