@@ -1,8 +1,6 @@
 //! Command-line front ends: each binary in `src/bin/` parses its arguments with clap
 //! here and calls the library. Nothing in the numerical cores depends on this module.
 
-use crate::Error;
-
 mod fc3d;
 mod post;
 mod solvers;
@@ -24,11 +22,6 @@ pub fn exit_with(program: &str, result: crate::Result<()>) -> ! {
             std::process::exit(err.exit_code())
         }
     }
-}
-
-/// Shorthand for the "not implemented yet" error of a planned solver.
-pub fn not_implemented(what: &str) -> Error {
-    Error::NotImplemented(what.to_string())
 }
 
 #[cfg(test)]

@@ -196,7 +196,11 @@ impl MoreauJean {
             } else {
                 let speed =
                     b.velocity.norm() + b.angular_velocity.norm() * b.shape.bounding_radius();
-                let fall = if b.is_dynamic() { dt * gravity.norm() } else { 0.0 };
+                let fall = if b.is_dynamic() {
+                    dt * gravity.norm()
+                } else {
+                    0.0
+                };
                 2.0 * dt * (speed + fall)
             }
         }));

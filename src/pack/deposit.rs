@@ -153,6 +153,10 @@ pub struct StepRecord<'a> {
     pub report: &'a StepReport,
 }
 
+/// What sees every step: its record, the bodies and their roles (CSV rows, frames,
+/// progress).
+pub type Observer<'o> = dyn FnMut(&StepRecord, &[Body], &[Role]) + 'o;
+
 /// The deposition in progress: bodies, their roles, the engine and the clock.
 pub struct Deposition {
     /// Fixed inputs.
@@ -277,7 +281,7 @@ impl Deposition {
         &mut self,
         friction_while_raining: bool,
         phase: &str,
-        observe: &mut dyn FnMut(&StepRecord, &[Body], &[Role]),
+        observe: &mut Observer,
     ) -> StepReport {
         let friction = if friction_while_raining {
             &self.setup.rain_friction
@@ -451,13 +455,7 @@ impl Deposition {
     /// off the stones whose centre is above `level` and settles again. `bottom` is the
     /// level from which the new stones fill (the free volume is the free area times
     /// `level − bottom`).
-    pub fn fill(
-        &mut self,
-        name: &str,
-        bottom: f64,
-        level: f64,
-        observe: &mut dyn FnMut(&StepRecord, &[Body], &[Role]),
-    ) {
+    pub fn fill(&mut self, name: &str, bottom: f64, level: f64, observe: &mut Observer) {
         let volume = self.free_area() * (level - bottom).max(0.0);
         let room = self.setup.max_stones.saturating_sub(self.stone_count());
         let wanted =
@@ -510,12 +508,7 @@ impl Deposition {
     }
 
     /// Steps until settled or `max_phase_time`; true if settled.
-    fn settle_for(
-        &mut self,
-        name: &str,
-        raining_friction: bool,
-        observe: &mut dyn FnMut(&StepRecord, &[Body], &[Role]),
-    ) -> bool {
+    fn settle_for(&mut self, name: &str, raining_friction: bool, observe: &mut Observer) -> bool {
         let start = self.time;
         while self.time - start < self.setup.max_phase_time {
             let report = self.step(raining_friction, name, observe);
@@ -532,7 +525,7 @@ impl Deposition {
     }
 
     /// Lets the bed settle with the final friction table (a phase of its own).
-    pub fn settle(&mut self, name: &str, observe: &mut dyn FnMut(&StepRecord, &[Body], &[Role])) {
+    pub fn settle(&mut self, name: &str, observe: &mut Observer) {
         let start = self.time;
         let settled = self.settle_for(name, false, observe);
         self.phases.push(PhaseReport {
@@ -551,7 +544,7 @@ impl Deposition {
     pub fn lower_sleepers(
         &mut self,
         sleepers: &[(SleeperModel, [f64; 2])],
-        observe: &mut dyn FnMut(&StepRecord, &[Body], &[Role]),
+        observe: &mut Observer,
     ) {
         for (k, (model, [x, y])) in sleepers.iter().enumerate() {
             let [fx, fy] = model.footprint;
@@ -592,7 +585,7 @@ impl Deposition {
         amplitude: f64,
         frequency: f64,
         duration: f64,
-        observe: &mut dyn FnMut(&StepRecord, &[Body], &[Role]),
+        observe: &mut Observer,
     ) {
         let cycles = (duration * frequency).round().max(1.0);
         let dt = self.setup.params.dt;

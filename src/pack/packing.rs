@@ -223,7 +223,8 @@ impl Packing {
                     return Err(format!("key {key}.position: must be finite numbers"));
                 }
                 let norm = p.orientation.iter().map(|q| q * q).sum::<f64>().sqrt();
-                if !((norm - 1.0).abs() < 1e-9) {
+                let unit = (norm - 1.0).abs() < 1e-9;
+                if !unit {
                     return Err(format!(
                         "key {key}.orientation: not a unit quaternion [w, x, y, z] (norm {norm})"
                     ));

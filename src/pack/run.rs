@@ -290,7 +290,6 @@ pub fn run(ctx: &RunContext) -> Result<()> {
         );
     }
     bed.settle("final settle", &mut observe);
-    drop(observe);
     bar.finish_and_clear();
     if let Some(e) = failure {
         return Err(e);
@@ -309,23 +308,6 @@ pub fn run(ctx: &RunContext) -> Result<()> {
     let clock = Instant::now();
     let final_contacts = bed.detect();
     let (max_pen, mean_pen) = interpenetration(&final_contacts);
-    if std::env::var_os("BALLAST_DEBUG").is_some() {
-        let mut deep: Vec<_> = final_contacts.iter().filter(|c| c.gap < -1e-4).collect();
-        deep.sort_by(|a, b| a.gap.total_cmp(&b.gap));
-        for c in deep.iter().take(12) {
-            eprintln!(
-                "DEBUG {:?} {:?} gap {:.3e} n {:?} at {:?} ka {} kb {}",
-                bed.roles[c.key.body_a as usize],
-                bed.roles[c.key.body_b as usize],
-                c.gap,
-                c.normal,
-                c.point,
-                c.key.feature_a,
-                c.key.feature_b
-            );
-        }
-        eprintln!("DEBUG {} contacts deeper than 0.1 mm", deep.len());
-    }
     let (coordination, coordination_walls) = coordination_numbers(&bed.roles, bed.last_contacts());
     let diameters = bed.stone_diameters();
     let d50 = median(&diameters);
