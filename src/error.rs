@@ -25,9 +25,6 @@ pub enum Error {
     /// A command-line or run-time condition that is not tied to one file.
     #[error("{0}")]
     Message(String),
-    /// A capability that is planned but not built yet (binaries exit with status 2).
-    #[error("{0}: not implemented yet")]
-    NotImplemented(String),
 }
 
 impl Error {
@@ -44,14 +41,6 @@ impl Error {
         Error::Invalid {
             path: path.as_ref().to_path_buf(),
             what: what.into(),
-        }
-    }
-
-    /// The process exit status for this error: 2 for "not implemented", 1 otherwise.
-    pub fn exit_code(&self) -> i32 {
-        match self {
-            Error::NotImplemented(_) => 2,
-            _ => 1,
         }
     }
 }

@@ -78,11 +78,12 @@ fn every_binary_explains_itself() {
 }
 
 #[test]
-fn planned_solvers_say_not_implemented_with_status_2() {
+fn a_scene_of_another_tool_is_refused_by_its_first_unknown_key() {
+    // A QDEM scene given to ballast-pack: one line naming the file and the key.
     let scene = fixture("scenes/valid_presets.toml");
     let scene = scene.to_str().unwrap();
     let output = run(BINARIES[0].1, &[scene]);
-    assert_one_line_error(&output, 2, &["not implemented yet"]);
+    assert_one_line_error(&output, 1, &["valid_presets.toml", "unknown key dt"]);
 }
 
 #[test]

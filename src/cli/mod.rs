@@ -11,15 +11,15 @@ pub use solvers::{
     QdemCli,
 };
 
-/// Runs a binary's main function and turns an error into one line on stderr and a
-/// non-zero exit status (2 for "not implemented yet", 1 for any other failure).
+/// Runs a binary's main function and turns an error into one line on stderr and exit
+/// status 1.
 pub fn exit_with(program: &str, result: crate::Result<()>) -> ! {
     match result {
         Ok(()) => std::process::exit(0),
         Err(err) => {
             let line = err.to_string().replace('\n', " ");
             eprintln!("{program}: error: {line}");
-            std::process::exit(err.exit_code())
+            std::process::exit(1)
         }
     }
 }

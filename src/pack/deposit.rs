@@ -30,7 +30,8 @@
 //!
 //! # Settling
 //! A phase ends when the rms speed of the dynamic bodies, √(2 KE / Σm), is below the
-//! scene's `settle_speed`, or after `max_phase_time` (then reported as not settled).
+//! scene's `settle_speed` and no body point moves faster than four times that, or
+//! after `max_phase_time` (then reported as not settled).
 
 use std::collections::HashMap;
 use std::sync::Arc;
@@ -56,6 +57,9 @@ pub const PLACEMENT_TRIES: usize = 8;
 /// Random plan positions drawn for one stone at most (those over a sleeper are drawn
 /// again); a stone that finds no clear one is not inserted.
 pub const PLACEMENT_DRAWS: usize = 200;
+
+/// A settled bed has no body point faster than this many times `settle_speed`.
+pub const MAX_SPEED_FACTOR: f64 = 4.0;
 
 /// What a body of the bed is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -315,6 +319,18 @@ impl Deposition {
         report
     }
 
+    /// Whether the bed has settled: the rms speed below `settle_speed` and no body's
+    /// point faster than [`MAX_SPEED_FACTOR`] times it (a lone stone still sliding
+    /// down a sleeper's side hides in the rms of hundreds at rest).
+    fn settled(&self, kinetic_energy: f64) -> bool {
+        let limit = self.setup.settle_speed;
+        self.rms_speed(kinetic_energy) < limit
+            && self.bodies.iter().filter(|b| b.is_dynamic()).all(|b| {
+                b.velocity.norm() + b.angular_velocity.norm() * b.shape.bounding_radius()
+                    < MAX_SPEED_FACTOR * limit
+            })
+    }
+
     /// rms speed √(2 KE / Σm) of the dynamic bodies (m/s).
     fn rms_speed(&self, kinetic_energy: f64) -> f64 {
         let mass: f64 = self
@@ -454,8 +470,16 @@ impl Deposition {
     /// Rains stones to fill the bed up to `level` (m) and lets them settle; then strikes
     /// off the stones whose centre is above `level` and settles again. `bottom` is the
     /// level from which the new stones fill (the free volume is the free area times
-    /// `level − bottom`).
-    pub fn fill(&mut self, name: &str, bottom: f64, level: f64, observe: &mut Observer) {
+    /// `level − bottom`). `low_friction`: the raining friction table while it settles
+    /// (else the final one).
+    pub fn fill(
+        &mut self,
+        name: &str,
+        bottom: f64,
+        level: f64,
+        low_friction: bool,
+        observe: &mut Observer,
+    ) {
         let volume = self.free_area() * (level - bottom).max(0.0);
         let room = self.setup.max_stones.saturating_sub(self.stone_count());
         let wanted =
@@ -463,12 +487,12 @@ impl Deposition {
         let dt = self.setup.params.dt;
         let start = self.time;
         let inserted = self.insert_column(wanted);
-        let mut settled = self.settle_for(name, true, observe);
+        let mut settled = self.settle_for(name, low_friction, observe);
         let (time, steps) = (self.time - start, (self.time - start) / dt);
         let removed = self.strike_off(level);
         if removed > 0 {
-            settled =
-                self.settle_for(&format!("{name} (after strike-off)"), true, observe) && settled;
+            settled = self.settle_for(&format!("{name} (after strike-off)"), low_friction, observe)
+                && settled;
         }
         self.phases.push(PhaseReport {
             name: name.to_string(),
@@ -512,7 +536,7 @@ impl Deposition {
         let start = self.time;
         while self.time - start < self.setup.max_phase_time {
             let report = self.step(raining_friction, name, observe);
-            if self.rms_speed(report.kinetic_energy) < self.setup.settle_speed {
+            if self.settled(report.kinetic_energy) {
                 return true;
             }
         }

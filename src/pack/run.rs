@@ -269,15 +269,17 @@ pub fn run(ctx: &RunContext) -> Result<()> {
     };
     match &sleeper {
         Some(source) => {
-            bed.fill("under-sleeper layer", 0.0, depth, &mut observe);
+            bed.fill("under-sleeper layer", 0.0, depth, true, &mut observe);
             let placed: Vec<(SleeperModel, [f64; 2])> = nominal
                 .iter()
                 .map(|xy| (source.model.clone(), *xy))
                 .collect();
             bed.lower_sleepers(&placed, &mut observe);
-            bed.fill("crib", depth, crib_top, &mut observe);
+            // The crib ballast lands on the table's friction: at the raining µ it slides
+            // down the sleepers' sides for seconds.
+            bed.fill("crib", depth, crib_top, false, &mut observe);
         }
-        None => bed.fill("bed", 0.0, depth, &mut observe),
+        None => bed.fill("bed", 0.0, depth, true, &mut observe),
     }
     // Compaction and the final settle run under gravity and contact alone.
     bed.set_drag(false);
