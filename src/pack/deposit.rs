@@ -37,7 +37,7 @@ use std::collections::HashMap;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use nalgebra::{Isometry3, Translation3, Unit, Vector3};
+use nalgebra::{Isometry3, Point3, Translation3, Unit, Vector3};
 
 use crate::contact::ContactPoint;
 use crate::geometry::random::SplitMix;
@@ -60,6 +60,16 @@ pub const PLACEMENT_DRAWS: usize = 200;
 
 /// A settled bed has no body point faster than this many times `settle_speed`.
 pub const MAX_SPEED_FACTOR: f64 = 4.0;
+
+/// The axis-aligned box of `points` (lower and upper corners; `points` not empty).
+pub fn bounds(points: &[Point3<f64>]) -> (Point3<f64>, Point3<f64>) {
+    let (mut lo, mut hi) = (points[0], points[0]);
+    for p in points {
+        lo = lo.inf(p);
+        hi = hi.sup(p);
+    }
+    (lo, hi)
+}
 
 /// What a body of the bed is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -182,8 +192,8 @@ pub struct Deposition {
     /// Phases done.
     pub phases: Vec<PhaseReport>,
     engine: MoreauJean,
-    /// Whether the drag acts (off for the final settle).
-    drag: bool,
+    /// Finishing (compaction, final settle): no drag, strict settling.
+    finishing: bool,
     random: SplitMix,
     pitch: f64,
     inserted: usize,
@@ -233,7 +243,7 @@ impl Deposition {
             stepping: Duration::ZERO,
             phases: Vec::new(),
             engine,
-            drag: true,
+            finishing: false,
             random,
             inserted: 0,
         }
@@ -292,7 +302,7 @@ impl Deposition {
         } else {
             &self.setup.friction
         };
-        if let (Some(tau), true) = (self.setup.drag_time, self.drag) {
+        if let (Some(tau), false) = (self.setup.drag_time, self.finishing) {
             // Exact decay of a linear drag over the step, applied before it.
             let factor = (-self.setup.params.dt / tau).exp();
             for b in self.bodies.iter_mut().filter(|b| b.is_dynamic()) {
@@ -319,16 +329,18 @@ impl Deposition {
         report
     }
 
-    /// Whether the bed has settled: the rms speed below `settle_speed` and no body's
-    /// point faster than [`MAX_SPEED_FACTOR`] times it (a lone stone still sliding
-    /// down a sleeper's side hides in the rms of hundreds at rest).
+    /// Whether the bed has settled: the rms speed below `settle_speed`, and once
+    /// finishing ([`Self::finish`]) also no body point faster than [`MAX_SPEED_FACTOR`]
+    /// times it (a lone stone still sliding down a sleeper's side hides in the rms of
+    /// hundreds at rest; the intermediate phases only need a quiet heap).
     fn settled(&self, kinetic_energy: f64) -> bool {
         let limit = self.setup.settle_speed;
         self.rms_speed(kinetic_energy) < limit
-            && self.bodies.iter().filter(|b| b.is_dynamic()).all(|b| {
-                b.velocity.norm() + b.angular_velocity.norm() * b.shape.bounding_radius()
-                    < MAX_SPEED_FACTOR * limit
-            })
+            && (!self.finishing
+                || self.bodies.iter().filter(|b| b.is_dynamic()).all(|b| {
+                    b.velocity.norm() + b.angular_velocity.norm() * b.shape.bounding_radius()
+                        < MAX_SPEED_FACTOR * limit
+                }))
     }
 
     /// rms speed √(2 KE / Σm) of the dynamic bodies (m/s).
@@ -358,21 +370,21 @@ impl Deposition {
             .fold(0.0, f64::max)
     }
 
-    /// xy footprints of the sleepers (min x, max x, min y, max y).
-    fn sleeper_footprints(&self) -> Vec<[f64; 4]> {
+    /// The sleepers' axis-aligned boxes (lower and upper corners, world).
+    pub fn sleeper_boxes(&self) -> Vec<(Point3<f64>, Point3<f64>)> {
         self.bodies
             .iter()
             .zip(&self.roles)
             .filter(|(_, r)| matches!(r, Role::Sleeper(_)))
-            .map(|(b, _)| {
-                let v = b.world_vertices();
-                let (mut lo, mut hi) = (v[0], v[0]);
-                for p in &v {
-                    lo = lo.inf(p);
-                    hi = hi.sup(p);
-                }
-                [lo.x, hi.x, lo.y, hi.y]
-            })
+            .map(|(b, _)| bounds(&b.world_vertices()))
+            .collect()
+    }
+
+    /// xy footprints of the sleepers (min x, max x, min y, max y).
+    fn sleeper_footprints(&self) -> Vec<[f64; 4]> {
+        self.sleeper_boxes()
+            .iter()
+            .map(|(lo, hi)| [lo.x, hi.x, lo.y, hi.y])
             .collect()
     }
 
@@ -543,9 +555,10 @@ impl Deposition {
         false
     }
 
-    /// Switches the drag on or off (it is on from the start when the setup has one).
-    pub fn set_drag(&mut self, on: bool) {
-        self.drag = on;
+    /// Switches to the finishing rules (compaction, final settle): no drag, and a
+    /// phase settles only when no body point is fast either.
+    pub fn finish(&mut self) {
+        self.finishing = true;
     }
 
     /// Lets the bed settle with the final friction table (a phase of its own).

@@ -19,7 +19,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use serde_json::json;
 
-use super::deposit::{DepositSetup, Deposition, Role, SleeperModel};
+use super::deposit::{bounds, DepositSetup, Deposition, Role, SleeperModel};
 use super::packing::{PackedMesh, Packing, Placement, PACKING_FORMAT};
 use super::report::{
     compactness, control_boxes, coordination_numbers, interpenetration, median, stones_outside,
@@ -75,11 +75,7 @@ fn sleeper_source(scene: &BedScene, scene_path: &Path) -> Result<Option<SleeperS
     let pieces = mesh_pieces(&mesh, &Pieces::Hull)
         .map_err(|e| Error::invalid(scene_path, format!("key sleepers.mesh: {e}")))?;
     let points = &pieces[0].1;
-    let (mut lo, mut hi) = (points[0], points[0]);
-    for p in points {
-        lo = lo.inf(p);
-        hi = hi.sup(p);
-    }
+    let (lo, hi) = bounds(points);
     // The sleeper lies across the track (y): a mesh longer in x is turned about z.
     let turn = if hi.x - lo.x > hi.y - lo.y {
         UnitQuaternion::from_axis_angle(&Vector3::z_axis(), std::f64::consts::FRAC_PI_2)
@@ -275,14 +271,13 @@ pub fn run(ctx: &RunContext) -> Result<()> {
                 .map(|xy| (source.model.clone(), *xy))
                 .collect();
             bed.lower_sleepers(&placed, &mut observe);
-            // The crib ballast lands on the table's friction: at the raining µ it slides
-            // down the sleepers' sides for seconds.
-            bed.fill("crib", depth, crib_top, false, &mut observe);
+            bed.fill("crib", depth, crib_top, true, &mut observe);
         }
         None => bed.fill("bed", 0.0, depth, true, &mut observe),
     }
-    // Compaction and the final settle run under gravity and contact alone.
-    bed.set_drag(false);
+    // Compaction and the final settle run under gravity and contact alone, and the
+    // final state has no body moving.
+    bed.finish();
     if let Some(c) = &scene.compaction {
         bed.compact(
             c.amplitude.si(),
@@ -313,21 +308,7 @@ pub fn run(ctx: &RunContext) -> Result<()> {
     let (coordination, coordination_walls) = coordination_numbers(&bed.roles, bed.last_contacts());
     let diameters = bed.stone_diameters();
     let d50 = median(&diameters);
-    let sleeper_boxes: Vec<(Point3<f64>, Point3<f64>)> = bed
-        .bodies
-        .iter()
-        .zip(&bed.roles)
-        .filter(|(_, r)| matches!(r, Role::Sleeper(_)))
-        .map(|(b, _)| {
-            let v = b.world_vertices();
-            let (mut lo, mut hi) = (v[0], v[0]);
-            for p in &v {
-                lo = lo.inf(p);
-                hi = hi.sup(p);
-            }
-            (lo, hi)
-        })
-        .collect();
+    let sleeper_boxes = bed.sleeper_boxes();
     let boxes = control_boxes(
         bed.setup.length,
         bed.setup.width,
