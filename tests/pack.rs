@@ -360,3 +360,71 @@ fn malformed_packings_give_one_line_errors() {
     let scene = packing_scene(work.path(), &packing, 1);
     assert_success(&run_nscd(&scene, &work.path().join("out")));
 }
+
+#[test]
+fn a_vibrating_floor_compacts_a_plain_box_and_comes_back_to_rest() {
+    // A plain box (no sleepers) of some 60 stones, the floor vibrated 0.5 mm at 35 Hz
+    // for 0.2 s: 7 whole cycles, round(7 / 35 Hz / 2 ms) = 100 steps, after which the
+    // floor is back where it started.
+    let work = tempfile::tempdir().unwrap();
+    let base = std::fs::read_to_string(root().join("scenes/bed.toml")).unwrap();
+    let stones = root().join("meshes/stones");
+    let mut scene = String::new();
+    for line in base.lines() {
+        if line.starts_with("[preset.") {
+            break;
+        }
+        scene.push_str(&line.replace("\"../meshes/stones\"", &format!("{stones:?}")));
+        scene.push('\n');
+    }
+    // No sleepers: a plain box 0.3 × 0.3 m, 0.08 m deep.
+    let start = scene.find("[sleepers]").unwrap();
+    let end = scene[start..].find("[deposit]").unwrap() + start;
+    scene.replace_range(start..end, "");
+    let scene = scene
+        .replace("length = \"1.8 m\"", "length = \"0.3 m\"")
+        .replace("width = \"1.0 m\"", "width = \"0.3 m\"")
+        .replace("depth = \"0.25 m\"", "depth = \"0.08 m\"")
+        .replace(
+            "[output]",
+            "[compaction]\namplitude = \"0.5 mm\"\nfrequency = \"35 Hz\"\nduration = \"0.2 s\"\n\n[output]",
+        );
+    let path = work.path().join("box.toml");
+    std::fs::write(&path, scene).unwrap();
+    let out = work.path().join("out");
+    let output = Command::new(PACK)
+        .arg(&path)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert_success(&output);
+    let f = figures(&out);
+    let phases: Vec<&str> = f["phases"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| p["name"].as_str().unwrap())
+        .collect();
+    assert!(phases.contains(&"compaction"), "{phases:?}");
+    let compaction = f["phases"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|p| p["name"] == "compaction")
+        .unwrap();
+    assert_eq!(compaction["steps"], 100);
+    // Whole cycles: the floor's displacement integrates to zero up to round-off.
+    assert!(number(&f, "floor_offset_m").abs() < 1e-12);
+    assert_eq!(f["settled"], true, "{}", f["phases"]);
+    assert_eq!(number(&f, "stones_outside"), 0.0);
+    assert_eq!(number(&f, "sleepers"), 0.0);
+    assert!(number(&f, "mean_interpenetration_over_d50") < 1e-3);
+    let names: Vec<&str> = f["compactness"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|b| b["box"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["bed"]);
+}

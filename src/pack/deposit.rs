@@ -195,7 +195,7 @@ pub struct Deposition {
     /// Finishing (compaction, final settle): no drag, strict settling.
     finishing: bool,
     random: SplitMix,
-    pitch: f64,
+    cell: f64,
     inserted: usize,
 }
 
@@ -232,7 +232,7 @@ impl Deposition {
         let engine = Self::engine(&setup);
         let random = SplitMix(setup.seed);
         Deposition {
-            pitch: 2.02 * radius,
+            cell: 2.02 * radius,
             setup,
             bodies,
             roles,
@@ -280,9 +280,10 @@ impl Deposition {
             .count()
     }
 
-    /// The cell of the column's plan grid: the family's largest bounding diameter (m).
-    pub fn pitch(&self) -> f64 {
-        self.pitch
+    /// The cell of the column's plan grid: 1.01 × the family's largest bounding
+    /// diameter (m).
+    pub fn cell(&self) -> f64 {
+        self.cell
     }
 
     /// Mean stone volume of the family (m³).
@@ -400,7 +401,7 @@ impl Deposition {
         let (l, w) = (self.setup.length, self.setup.width);
         let base = self.top() + 1e-3;
         let blocked = self.sleeper_footprints();
-        let cell = self.pitch;
+        let cell = self.cell;
         let key = |x: f64, y: f64| ((x / cell).floor() as i64, (y / cell).floor() as i64);
         let mut grid: HashMap<(i64, i64), Vec<usize>> = HashMap::new();
         let mut placed: Vec<(Vector3<f64>, f64)> = Vec::new();

@@ -3,7 +3,7 @@
 //! seed 000 builds its 7-sleeper slice the same way).
 //!
 //! - [`scene`]: the bed scene file (stones, bed, sleepers, deposition, compaction);
-//! - [`deposit`]: raining stones in lattice layers, settling, strike-off, lowering the
+//! - [`deposit`]: raining a column of stones, settling, strike-off, lowering the
 //!   sleepers, crib ballast, floor vibration;
 //! - [`report`]: compactness in control boxes by exact polyhedron clipping,
 //!   coordination number, interpenetration;

@@ -175,13 +175,13 @@ pub fn run(ctx: &RunContext) -> Result<()> {
         .as_ref()
         .map_or(depth, |s| depth + s.embed.si());
     println!(
-        "ballast-pack: {} — bed {:.3} × {:.3} m, {} stone shapes (pitch {:.1} mm), {} sleepers, \
+        "ballast-pack: {} — bed {:.3} × {:.3} m, {} stone shapes (largest {:.1} mm across), {} sleepers, \
          seed {}, {threads} threads",
         ctx.scene_path.display(),
         scene.bed.length.si(),
         scene.bed.width.si(),
         bed.setup.family.len(),
-        1e3 * bed.pitch(),
+        1e3 * bed.cell() / 1.01,
         scene.sleepers.as_ref().map_or(0, |s| s.count),
         scene.seed,
     );

@@ -58,7 +58,7 @@ use crate::scene::{Frequency, Length, Time, Validate, Validator, Velocity};
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct BedScene {
-    /// Seed of every random draw (stone choice, orientation, lattice jitter).
+    /// Seed of every random draw (stone choice, plan position, orientation).
     #[serde(default = "one")]
     pub seed: u64,
     /// The stones.
