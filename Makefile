@@ -9,7 +9,10 @@
 #   make bench    QDEM throughput at paper resolution on 1 and 2 threads
 #   make clean    remove build outputs, meshes and results (keeps the venv)
 #
-# Every step has real file dependencies: a second `make` does nothing.
+# Every step has real file dependencies: a second `make` does nothing. The default
+# scenes depend on the Rust sources, with the binaries order-only: `make test` relinks
+# the binaries (cargo unifies the dev-dependencies' features into them), which must not
+# make the next `make` redo every scene.
 
 SHELL := /bin/bash
 .DEFAULT_GOAL := all
@@ -63,7 +66,7 @@ meshes/%.msh: geo/%.geo | $(VENV_STAMP)
 
 ## The default scene: every mesh checked, exported to VTK and tabulated.
 gallery: results/mesh_gallery/summary.json
-results/mesh_gallery/summary.json: scenes/mesh_gallery.toml $(OBJECT_MESHES) $(STONE_MESHES) $(RELEASE)/ballast-post
+results/mesh_gallery/summary.json: scenes/mesh_gallery.toml $(OBJECT_MESHES) $(STONE_MESHES) $(RUST_SOURCES) | $(RELEASE)/ballast-post
 	$(RELEASE)/ballast-post meshes $< --out $(@D)
 
 ## README pictures: the meshes rendered from the gallery's VTK files, the QDEM quick

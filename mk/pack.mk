@@ -9,7 +9,7 @@ PACK_PRESETS := table3 tamping7 impact
 .PHONY: pack-quick pack-presets
 
 pack-quick: $(PACK_CHART)
-$(PACK_QUICK): scenes/bed.toml $(STONE_MESHES) meshes/sleeper_type3.msh $(RELEASE)/ballast-pack
+$(PACK_QUICK): scenes/bed.toml $(STONE_MESHES) meshes/sleeper_type3.msh $(RUST_SOURCES) | $(RELEASE)/ballast-pack
 	$(RELEASE)/ballast-pack $< --preset quick --out $(@D)
 $(PACK_CHART): tools/pack_report.py $(PACK_QUICK) | $(VENV_STAMP)
 	$(PY) $< chart $(dir $(PACK_QUICK)) $@

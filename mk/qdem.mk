@@ -16,7 +16,7 @@ meshes/cantilever_h%.msh: geo/cantilever.geo | $(VENV_STAMP)
 
 ## The quick presets (seconds each): part of the default `make`.
 qdem-quick: $(QDEM_QUICK)
-results/%-quick/summary.json: scenes/%.toml $(QDEM_QUICK_MESHES) $(RELEASE)/ballast-qdem
+results/%-quick/summary.json: scenes/%.toml $(QDEM_QUICK_MESHES) $(RUST_SOURCES) | $(RELEASE)/ballast-qdem
 	$(RELEASE)/ballast-qdem $< --preset quick --out $(@D)
 
 ## The paper's resolution and the convergence table over h (long: not part of tests).
