@@ -94,8 +94,8 @@ def table(directories):
         print(
             f"| {os.path.basename(os.path.normpath(d))} | {f['grains']} | "
             f"{1e3 * f['d50_m']:.1f} | {boxes} | "
-            f"{100 * f['mean_interpenetration_over_d50']:.3f} / "
-            f"{100 * f['max_interpenetration_over_d50']:.2f} | "
+            f"{100 * f['mean_interpenetration_over_d50']:.4f} / "
+            f"{100 * f['max_interpenetration_over_d50']:.3f} | "
             f"{f['coordination_number']:.2f} | {f['steps']} | {f['stepping_s']:.0f} | "
             f"{f['grains_steps_per_s']:.3g} |"
         )
