@@ -124,15 +124,9 @@ pub fn packed_bodies(
                 Some(read_stone_shape(&spec.file, spec.scale).map_err(|e| mesh_error(m, e))?);
         }
         let stone = shapes[m].as_ref().expect("read above");
-        let name = stone
-            .file
-            .file_stem()
-            .and_then(|s| s.to_str())
-            .unwrap_or("stone");
         stone_diameters.push(stone.diameter());
-        bodies.push(Body::dynamic(
-            &format!("{name}#{k}"),
-            stone.shape.clone(),
+        bodies.push(stone.body(
+            k,
             materials.stones.density,
             materials.stones.material,
             s.pose() * stone.mesh_pose,

@@ -1176,6 +1176,23 @@ impl StoneShape {
     pub fn radius(&self) -> f64 {
         self.shape.bounding_radius()
     }
+
+    /// Stone number `k` of this shape as a dynamic body, named `<mesh stem>#k`, its
+    /// principal frame at `pose`.
+    pub fn body(&self, k: usize, density: f64, material: u32, pose: Isometry3<f64>) -> Body {
+        let name = self
+            .file
+            .file_stem()
+            .and_then(|s| s.to_str())
+            .unwrap_or("stone");
+        Body::dynamic(
+            &format!("{name}#{k}"),
+            self.shape.clone(),
+            density,
+            material,
+            pose,
+        )
+    }
 }
 
 /// Reads the stone meshes of `directory` (sorted `stone_*.msh`) as convex hulls, their
@@ -1267,15 +1284,9 @@ fn place_stones(
         );
         let centre = lo + spacing * Vector3::new(ix as f64 + 0.5, iy as f64 + 0.5, iz as f64 + 0.5);
         let stone = &shapes[k % shapes.len()];
-        let name = stone
-            .file
-            .file_stem()
-            .and_then(|s| s.to_str())
-            .unwrap_or("stone");
         diameters.push(stone.diameter());
-        bodies.push(Body::dynamic(
-            &format!("{name}#{k}"),
-            stone.shape.clone(),
+        bodies.push(stone.body(
+            k,
             density,
             material,
             Isometry3::from_parts(Translation3::from(centre), random.rotation()),

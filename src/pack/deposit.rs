@@ -451,15 +451,8 @@ impl Deposition {
                 .push(placed.len());
             placed.push((centre, r));
             let rotation = self.random.rotation();
-            let stone = &self.setup.family[family];
-            let name = stone
-                .file
-                .file_stem()
-                .and_then(|s| s.to_str())
-                .unwrap_or("stone");
-            self.bodies.push(Body::dynamic(
-                &format!("{name}#{}", self.inserted),
-                stone.shape.clone(),
+            self.bodies.push(self.setup.family[family].body(
+                self.inserted,
                 self.setup.stone_density,
                 self.setup.stone_material,
                 Isometry3::from_parts(Translation3::from(centre), rotation),
