@@ -428,3 +428,41 @@ fn a_vibrating_floor_compacts_a_plain_box_and_comes_back_to_rest() {
         .collect();
     assert_eq!(names, ["bed"]);
 }
+
+#[test]
+fn beds_that_cannot_hold_the_stones_are_one_line_errors() {
+    let work = tempfile::tempdir().unwrap();
+    let cases: [(&[&str], &str); 2] = [
+        (
+            &[
+                "--set",
+                "bed.width=\"0.02 m\"",
+                "--set",
+                "sleepers.size=[\"0.15 m\", \"0.01 m\", \"0.12 m\"]",
+            ],
+            "key bed.width",
+        ),
+        (
+            &["--set", "sleepers.size=[\"0.15 m\", \"0.5 m\", \"0.12 m\"]"],
+            "key sleepers.size[1]",
+        ),
+    ];
+    for (args, key) in cases {
+        let output = Command::new(PACK)
+            .arg(root().join("scenes/bed.toml"))
+            .args(["--preset", "quick"])
+            .args(args)
+            .arg("--out")
+            .arg(work.path().join("out"))
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(!output.status.success(), "{key}: accepted");
+        assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
+        assert!(
+            stderr.contains("bed.toml") && stderr.contains(key),
+            "{stderr}"
+        );
+        assert!(!work.path().join("out/summary.json").exists());
+    }
+}

@@ -140,6 +140,24 @@ pub fn run(ctx: &RunContext) -> Result<()> {
             ),
         ));
     }
+    let smallest = family
+        .iter()
+        .map(|s| 2.0 * s.radius())
+        .fold(f64::INFINITY, f64::min);
+    for (key, extent) in [
+        ("bed.length", scene.bed.length.si()),
+        ("bed.width", scene.bed.width.si()),
+    ] {
+        if extent < smallest {
+            return Err(Error::invalid(
+                &ctx.scene_path,
+                format!(
+                    "key {key}: {extent} m is narrower than the smallest stone of the family \
+                     ({smallest:.4} m across its bounding sphere): no stone fits"
+                ),
+            ));
+        }
+    }
     let sleeper = sleeper_source(&scene, &ctx.scene_path)?;
     let (friction, rain_friction) = friction_tables(&scene);
     let d = &scene.deposit;
@@ -307,6 +325,13 @@ pub fn run(ctx: &RunContext) -> Result<()> {
     let (max_pen, mean_pen) = interpenetration(&final_contacts);
     let (coordination, coordination_walls) = coordination_numbers(&bed.roles, bed.last_contacts());
     let diameters = bed.stone_diameters();
+    if diameters.is_empty() {
+        return Err(Error::invalid(
+            &ctx.scene_path,
+            "no stone could be placed in the bed (all plan positions fell on sleepers or \
+             too close to the walls); only deposit.csv and the frames were written",
+        ));
+    }
     let d50 = median(&diameters);
     let sleeper_boxes = bed.sleeper_boxes();
     let boxes = control_boxes(
@@ -317,6 +342,16 @@ pub fn run(ctx: &RunContext) -> Result<()> {
         crib_top,
         d50,
     );
+    if let Some((name, _)) = boxes.iter().find(|(_, b)| b.volume() <= 0.0) {
+        return Err(Error::invalid(
+            &ctx.scene_path,
+            format!(
+                "control box {name} is empty: the boxes stay one d50 ({d50:.4} m) clear of the \
+                 walls, the floor and the crib surface, and this bed leaves no room for it \
+                 (make bed.length, bed.width, bed.depth or sleepers.embed larger)"
+            ),
+        ));
+    }
     let solid = compactness(&bed.bodies, &bed.roles, &boxes);
     let top = bed
         .bodies

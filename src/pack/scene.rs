@@ -324,6 +324,11 @@ impl Validate for BedScene {
                     s.count as f64 * s.spacing.si() <= self.bed.length.si() + 1e-12,
                     "count × spacing must fit in bed.length",
                 );
+                v.check(
+                    "sleepers.size[1]",
+                    size[1].si() < self.bed.width.si(),
+                    "must be less than bed.width (the sleepers lie across the bed)",
+                );
             }
         }
         let d = &self.deposit;
