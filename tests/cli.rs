@@ -29,24 +29,6 @@ fn run(binary: &str, args: &[&str]) -> Output {
         .expect("cannot start the binary")
 }
 
-/// Asserts a failed run: the given exit status, exactly one line on stderr that names
-/// every `needle`, no panic, and nothing on stdout.
-fn assert_one_line_error(output: &Output, status: i32, needles: &[&str]) -> String {
-    let stderr = String::from_utf8_lossy(&output.stderr).to_string();
-    assert_eq!(output.status.code(), Some(status), "stderr: {stderr}");
-    assert_eq!(
-        stderr.trim_end().lines().count(),
-        1,
-        "not one line: {stderr}"
-    );
-    assert!(!stderr.contains("panicked"), "panic: {stderr}");
-    for needle in needles {
-        assert!(stderr.contains(needle), "{needle:?} not in: {stderr}");
-    }
-    assert!(output.stdout.is_empty(), "unexpected stdout on error");
-    stderr
-}
-
 /// A gallery scene around the cube fixture, written into `dir`.
 fn gallery_scene(dir: &Path, mesh: &Path, material_extra: &str) -> PathBuf {
     let scene = dir.join("gallery.toml");
@@ -83,17 +65,17 @@ fn a_scene_of_another_tool_is_refused_by_its_first_unknown_key() {
     let scene = fixture("scenes/valid_presets.toml");
     let scene = scene.to_str().unwrap();
     let output = run(BINARIES[0].1, &[scene]);
-    assert_one_line_error(&output, 1, &["valid_presets.toml", "unknown key dt"]);
+    common::assert_one_line_error(&output, 1, &["valid_presets.toml", "unknown key dt"]);
 }
 
 #[test]
 fn a_missing_scene_file_is_named() {
     for (_, binary) in &BINARIES[..3] {
         let output = run(binary, &["no/such/scene.toml"]);
-        assert_one_line_error(&output, 1, &["no/such/scene.toml"]);
+        common::assert_one_line_error(&output, 1, &["no/such/scene.toml"]);
     }
     let output = run(BINARIES[4].1, &["meshes", "no/such/scene.toml"]);
-    assert_one_line_error(&output, 1, &["no/such/scene.toml"]);
+    common::assert_one_line_error(&output, 1, &["no/such/scene.toml"]);
 }
 
 #[test]
@@ -174,7 +156,7 @@ fn bad_scenes_and_meshes_give_one_line_errors() {
     )
     .unwrap();
     let output = run(post, &["meshes", scene.to_str().unwrap()]);
-    assert_one_line_error(
+    common::assert_one_line_error(
         &output,
         1,
         &["negative.toml", "material[0].density", "must be positive"],
@@ -183,7 +165,7 @@ fn bad_scenes_and_meshes_give_one_line_errors() {
     // An unknown key.
     let scene = gallery_scene(dir.path(), &cube, "densty = 1.0");
     let output = run(post, &["meshes", scene.to_str().unwrap()]);
-    assert_one_line_error(&output, 1, &["gallery.toml", "unknown key", "densty"]);
+    common::assert_one_line_error(&output, 1, &["gallery.toml", "unknown key", "densty"]);
 
     // A mesh with an inverted tetra: two nodes of the first tetra swapped.
     let text = std::fs::read_to_string(&cube).unwrap();
@@ -205,7 +187,7 @@ fn bad_scenes_and_meshes_give_one_line_errors() {
     .unwrap();
     let scene = gallery_scene(dir.path(), &inverted, "");
     let output = run(post, &["meshes", scene.to_str().unwrap()]);
-    assert_one_line_error(
+    common::assert_one_line_error(
         &output,
         1,
         &[
@@ -225,10 +207,10 @@ fn bad_scenes_and_meshes_give_one_line_errors() {
     )
     .unwrap();
     let output = run(post, &["meshes", scene.to_str().unwrap()]);
-    assert_one_line_error(&output, 1, &["cube_tet4_100.msh", "\"tip\"", "missing"]);
+    common::assert_one_line_error(&output, 1, &["cube_tet4_100.msh", "\"tip\"", "missing"]);
 
     // A missing mesh file.
     let scene = gallery_scene(dir.path(), &dir.path().join("nowhere.msh"), "");
     let output = run(post, &["meshes", scene.to_str().unwrap()]);
-    assert_one_line_error(&output, 1, &["nowhere.msh"]);
+    common::assert_one_line_error(&output, 1, &["nowhere.msh"]);
 }

@@ -4,6 +4,9 @@
 //!
 //! `drop_box` needs the stone meshes of `make meshes` (meshes/stones/stone_*.msh).
 
+mod common;
+
+use common::figure;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -42,12 +45,6 @@ fn run_scene(scene: &Path, out: &Path) -> std::process::Output {
         .arg(out)
         .output()
         .unwrap()
-}
-
-fn figure(figures: &Value, name: &str) -> f64 {
-    figures[name]
-        .as_f64()
-        .unwrap_or_else(|| panic!("figure {name} missing: {figures}"))
 }
 
 #[test]

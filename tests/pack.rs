@@ -13,6 +13,7 @@ use std::process::Command;
 use std::sync::OnceLock;
 
 use ballast::pack::Packing;
+use common::figure;
 use serde_json::Value;
 
 const PACK: &str = env!("CARGO_BIN_EXE_ballast-pack");
@@ -62,23 +63,17 @@ fn figures(dir: &Path) -> Value {
     summary["figures"].clone()
 }
 
-fn number(figures: &Value, name: &str) -> f64 {
-    figures[name]
-        .as_f64()
-        .unwrap_or_else(|| panic!("figure {name} missing: {figures}"))
-}
-
 #[test]
 fn quick_bed_is_settled_dense_and_inside_its_box() {
     let f = figures(quick());
-    let grains = number(&f, "grains");
+    let grains = figure(&f, "grains");
     assert!((200.0..=800.0).contains(&grains), "grains {grains}");
-    assert_eq!(number(&f, "sleepers"), 2.0);
+    assert_eq!(figure(&f, "sleepers"), 2.0);
     // The family's d50 is 41.6 mm by volume-equivalent diameter (docs/stones.md); the
     // median of a few hundred drawn from it stays within a few mm of it.
-    let d50 = number(&f, "d50_m");
+    let d50 = figure(&f, "d50_m");
     assert!((0.035..0.048).contains(&d50), "d50 {d50}");
-    assert_eq!(number(&f, "stones_outside"), 0.0);
+    assert_eq!(figure(&f, "stones_outside"), 0.0);
     assert_eq!(
         f["settled"], true,
         "a phase did not settle: {}",
@@ -87,8 +82,8 @@ fn quick_bed_is_settled_dense_and_inside_its_box() {
     // Issue #6: final interpenetration below 0.1 % of d50 (the mean over touching
     // contacts, as drop_box's acceptance); the deepest point is reported and bounded at
     // 1 % of d50 (0.4 mm).
-    let mean = number(&f, "mean_interpenetration_over_d50");
-    let max = number(&f, "max_interpenetration_over_d50");
+    let mean = figure(&f, "mean_interpenetration_over_d50");
+    let max = figure(&f, "max_interpenetration_over_d50");
     assert!(mean < 1e-3, "mean interpenetration {mean} d50");
     assert!(max < 1e-2, "max interpenetration {max} d50");
     // Compactness (solid fraction) per control box, exact by clipping. Railway ballast
@@ -105,12 +100,12 @@ fn quick_bed_is_settled_dense_and_inside_its_box() {
         let value = b["value"].as_f64().unwrap();
         assert!((0.50..0.66).contains(&value), "{}: {value}", b["box"]);
     }
-    let coordination = number(&f, "coordination_number");
+    let coordination = figure(&f, "coordination_number");
     assert!(
         (2.5..8.0).contains(&coordination),
         "coordination {coordination}"
     );
-    assert!(number(&f, "grains_steps_per_s") > 0.0);
+    assert!(figure(&f, "grains_steps_per_s") > 0.0);
 }
 
 #[test]
@@ -118,10 +113,10 @@ fn packing_and_vtk_files_read_back() {
     let dir = quick();
     let f = figures(dir);
     let packing = Packing::read(&dir.join("packing.toml")).expect("the packing reads back");
-    assert_eq!(packing.stones.len() as f64, number(&f, "grains"));
+    assert_eq!(packing.stones.len() as f64, figure(&f, "grains"));
     assert_eq!(packing.sleepers.len(), 2);
     assert_eq!(packing.seed, 1);
-    assert_eq!(packing.d50_m, number(&f, "d50_m"));
+    assert_eq!(packing.d50_m, figure(&f, "d50_m"));
     for m in &packing.meshes {
         assert!(
             m.file.exists(),
@@ -271,8 +266,8 @@ fn ballast_nscd_builds_the_bed_from_the_packing() {
     assert_success(&run_nscd(&scene, &out));
     let n = figures(&out);
     // Floor + four walls, the sleepers, the stones.
-    assert_eq!(number(&n, "bodies"), 5.0 + 2.0 + number(&f, "grains"));
-    assert_eq!(number(&n, "d50_m"), number(&f, "d50_m"));
+    assert_eq!(figure(&n, "bodies"), 5.0 + 2.0 + figure(&f, "grains"));
+    assert_eq!(figure(&n, "d50_m"), figure(&f, "d50_m"));
     // The bed read back is the bed written: the hull vertices of every sleeper and stone
     // in ballast-nscd's first frame are ballast-pack's final ones (sleepers.vtu, then
     // stones.vtu), up to the round-off of composing a placement with the principal
@@ -304,12 +299,12 @@ fn ballast_nscd_builds_the_bed_from_the_packing() {
     // need far more), so the bed sags a little; but it holds: no body point moves as
     // far as free fall would take it in 0.02 s (½ g t² = 1.96 mm; measured ≈ 1 mm), and
     // the mean overlap stays below 0.1 % of d50.
-    let drift = number(&n, "max_drift_m");
+    let drift = figure(&n, "max_drift_m");
     assert!(
         drift < 0.5 * 9.81 * 0.02 * 0.02,
         "max drift in 10 steps {drift} m"
     );
-    let mean = number(&n, "final_mean_interpenetration_over_d50");
+    let mean = figure(&n, "final_mean_interpenetration_over_d50");
     assert!(mean < 1e-3, "mean overlap after 10 steps {mean} d50");
 }
 
@@ -346,14 +341,7 @@ fn malformed_packings_give_one_line_errors() {
         std::fs::write(&packing, &text).unwrap();
         let scene = packing_scene(work.path(), &packing, 1);
         let output = run_nscd(&scene, &work.path().join("out"));
-        let stderr = String::from_utf8_lossy(&output.stderr);
-        assert!(!output.status.success(), "{key}: accepted");
-        assert_eq!(stderr.trim().lines().count(), 1, "{key}: {stderr}");
-        assert!(
-            stderr.contains("packing.toml") && stderr.contains(key),
-            "{key}: {stderr}"
-        );
-        assert!(!stderr.contains("panicked"), "{stderr}");
+        common::assert_one_line_error(&output, 1, &["packing.toml", key]);
     }
     // The good one runs.
     std::fs::write(&packing, &good).unwrap();
@@ -415,11 +403,11 @@ fn a_vibrating_floor_compacts_a_plain_box_and_comes_back_to_rest() {
         .unwrap();
     assert_eq!(compaction["steps"], 100);
     // Whole cycles: the floor's displacement integrates to zero up to round-off.
-    assert!(number(&f, "floor_offset_m").abs() < 1e-12);
+    assert!(figure(&f, "floor_offset_m").abs() < 1e-12);
     assert_eq!(f["settled"], true, "{}", f["phases"]);
-    assert_eq!(number(&f, "stones_outside"), 0.0);
-    assert_eq!(number(&f, "sleepers"), 0.0);
-    assert!(number(&f, "mean_interpenetration_over_d50") < 1e-3);
+    assert_eq!(figure(&f, "stones_outside"), 0.0);
+    assert_eq!(figure(&f, "sleepers"), 0.0);
+    assert!(figure(&f, "mean_interpenetration_over_d50") < 1e-3);
     let names: Vec<&str> = f["compactness"]
         .as_array()
         .unwrap()
@@ -456,13 +444,7 @@ fn beds_that_cannot_hold_the_stones_are_one_line_errors() {
             .arg(work.path().join("out"))
             .output()
             .unwrap();
-        let stderr = String::from_utf8_lossy(&output.stderr);
-        assert!(!output.status.success(), "{key}: accepted");
-        assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
-        assert!(
-            stderr.contains("bed.toml") && stderr.contains(key),
-            "{stderr}"
-        );
+        common::assert_one_line_error(&output, 1, &["bed.toml", key]);
         assert!(!work.path().join("out/summary.json").exists());
     }
 }

@@ -2,7 +2,7 @@
 #![allow(dead_code)]
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::process::{Command, Output};
 
 use serde_json::Value;
 
@@ -36,4 +36,29 @@ pub fn read_with_vtk(files: &[PathBuf]) -> Value {
         String::from_utf8_lossy(&output.stderr)
     );
     serde_json::from_slice(&output.stdout).expect("vtk_read.py printed invalid JSON")
+}
+
+/// Asserts a failed run: the given exit status, exactly one line on stderr that names
+/// every `needle`, no panic, and nothing on stdout.
+pub fn assert_one_line_error(output: &Output, status: i32, needles: &[&str]) -> String {
+    let stderr = String::from_utf8_lossy(&output.stderr).to_string();
+    assert_eq!(output.status.code(), Some(status), "stderr: {stderr}");
+    assert_eq!(
+        stderr.trim_end().lines().count(),
+        1,
+        "not one line: {stderr}"
+    );
+    assert!(!stderr.contains("panicked"), "panic: {stderr}");
+    for needle in needles {
+        assert!(stderr.contains(needle), "{needle:?} not in: {stderr}");
+    }
+    assert!(output.stdout.is_empty(), "unexpected stdout on error");
+    stderr
+}
+
+/// The number `name` of a summary's `figures`, or a panic naming it.
+pub fn figure(figures: &Value, name: &str) -> f64 {
+    figures[name]
+        .as_f64()
+        .unwrap_or_else(|| panic!("figure {name} missing: {figures}"))
 }
