@@ -10,6 +10,7 @@
 
 pub mod cli;
 pub mod contact;
+pub mod ddm;
 pub mod error;
 pub mod fc3d;
 pub mod fem;

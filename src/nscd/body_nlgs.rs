@@ -52,15 +52,13 @@ pub struct BodyInverses<'a> {
     pub inverse_inertia: &'a [Matrix3<f64>],
 }
 
-/// A body's velocities in the sweep: `[v, 0, ω, 0]` (world), padded to lanes of four.
-type BodyState = [f64; 8];
-
 /// One contact's data for the sweep, as plain f64 arrays in lanes of four (the three
 /// local or world components and a zero pad), so that the compiler can pair them in
 /// vector registers; the local solver's cold data is kept apart in [`LocalCoulomb`].
-struct Prepared {
-    bodies: [usize; 2],
-    moves: [bool; 2],
+#[derive(Debug, Clone)]
+pub(crate) struct Prepared {
+    pub(crate) bodies: [usize; 2],
+    pub(crate) moves: [bool; 2],
     /// The first body does not move and has zero velocity (set by [`solve`]).
     resting_first: bool,
     /// Columns of the local Jacobian on `[v_j − v_i, ω_j, ω_i]`: `f_k[x]`, `A_j[x][k]`,
@@ -146,11 +144,32 @@ impl Prepared {
         }
     }
 
+    /// A contact's sweep data for the free velocities `state` (which tell whether its
+    /// first body rests).
+    pub(crate) fn at_state(row: &ContactRow, inv: &BodyInverses, state: &[BodyState]) -> Self {
+        let mut c = Prepared::new(row, inv);
+        c.resting_first = !c.moves[0] && state[c.bodies[0]] == [0.0; 8];
+        c
+    }
+
+    /// Its local Coulomb solver (W_aa and µ).
+    pub(crate) fn local_solver(&self) -> LocalCoulomb {
+        LocalCoulomb::new(&self.w, self.mu)
+    }
+
+    /// The same contact on another numbering of the bodies (a subdomain's own state).
+    pub(crate) fn relabelled(&self, bodies: [usize; 2]) -> Self {
+        Prepared {
+            bodies,
+            ..self.clone()
+        }
+    }
+
     /// The relative velocity (local, gap shift included) from the bodies' states.
     /// Each component is `(f_k·Δv) + (A_j,k·ω_j) − (A_i,k·ω_i)`, every dot product
     /// summed as `(a₀b₀ + a₁b₁) + a₂b₂` (nalgebra's order).
     #[inline(always)]
-    fn velocity(&self, state: &[BodyState]) -> [f64; 3] {
+    pub(crate) fn velocity(&self, state: &[BodyState]) -> [f64; 3] {
         let c = &self.columns;
         let sj = &state[self.bodies[1]];
         let mut u = [0.0; 4];
@@ -216,23 +235,153 @@ pub fn solve(
     impulse: &mut [[f64; 3]],
     options: &NlgsOptions,
 ) -> NlgsReport {
+    solve_by(
+        rows,
+        inverses,
+        velocity,
+        angular_velocity,
+        impulse,
+        options,
+        |contacts, impulse, directions, state| {
+            sweep(
+                &contacts.prepared,
+                &contacts.locals,
+                impulse,
+                directions,
+                state,
+            )
+        },
+    )
+}
+
+/// A body's velocities in the sweep: `[v, 0, ω, 0]` (world), padded to lanes of four.
+pub type BodyState = [f64; 8];
+
+/// The contacts of one problem, ready to sweep: the per-contact sweep data and the
+/// local Coulomb solvers, in the order of the rows.
+pub struct Sweepable {
+    /// Sweep data per contact.
+    pub(crate) prepared: Vec<Prepared>,
+    /// Local solver per contact.
+    pub(crate) locals: Vec<LocalCoulomb>,
+}
+
+impl Sweepable {
+    /// The number of contacts.
+    pub fn len(&self) -> usize {
+        self.prepared.len()
+    }
+
+    /// Whether there is no contact.
+    pub fn is_empty(&self) -> bool {
+        self.prepared.is_empty()
+    }
+}
+
+/// What a sweep (or a set of sweeps) did: the squared impulse change and size, each
+/// contact weighted by `W_aa,nn²` (for [`super::nlgs::ErrorCheck::Light`]), and the
+/// local fall-backs.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct SweepStats {
+    /// Σ W_nn² ‖Δr‖².
+    pub change: f64,
+    /// Σ W_nn² ‖r‖².
+    pub size: f64,
+    /// Local solves that fell back to the projected fixed point.
+    pub fallbacks: usize,
+}
+
+impl SweepStats {
+    /// Adds another block's statistics (callers add blocks in a fixed order, so the
+    /// sums do not depend on scheduling).
+    pub fn add(&mut self, other: &SweepStats) {
+        self.change += other.change;
+        self.size += other.size;
+        self.fallbacks += other.fallbacks;
+    }
+}
+
+/// One Gauss–Seidel sweep over `contacts` (with their `locals`, impulses and slip
+/// directions), updating the bodies' velocities in `state` in place. The contacts'
+/// body indices refer to `state`.
+pub(crate) fn sweep(
+    contacts: &[Prepared],
+    locals: &[LocalCoulomb],
+    impulse: &mut [[f64; 3]],
+    directions: &mut [[f64; 2]],
+    state: &mut [BodyState],
+) -> SweepStats {
+    let mut stats = SweepStats::default();
+    for (((c, local), old), direction) in contacts
+        .iter()
+        .zip(locals)
+        .zip(impulse.iter_mut())
+        .zip(directions.iter_mut())
+    {
+        let u = c.velocity(state);
+        let w = &c.w;
+        let o = *old;
+        let q = [
+            u[0] - (w[0] * o[0] + w[1] * o[1] + w[2] * o[2]),
+            u[1] - (w[3] * o[0] + w[4] * o[1] + w[5] * o[2]),
+            u[2] - (w[6] * o[0] + w[7] * o[1] + w[8] * o[2]),
+        ];
+        // Take-off (q_N ≥ 0, the most common case among open contacts) without
+        // calling the local solver.
+        let r = if q[0] >= 0.0 {
+            [0.0; 3]
+        } else {
+            let (r, status) = local.solve(q, direction);
+            if status == ContactStatus::Fallback {
+                stats.fallbacks += 1;
+            }
+            r
+        };
+        let d = [r[0] - o[0], r[1] - o[1], r[2] - o[2]];
+        if d != [0.0; 3] {
+            c.apply(d, state);
+        }
+        let scale = w[0] * w[0];
+        stats.change += scale * (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+        stats.size += scale * (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]);
+        *old = r;
+    }
+    stats
+}
+
+/// [`solve`] with the iteration given by the caller: `iteration(contacts, impulse,
+/// directions, state)` makes one iteration (one sweep for plain NLGS, one DDM
+/// iteration for [`crate::ddm`]) over all contacts and returns its statistics. This
+/// function owns the set-up (sweep data, free velocities, warm start), the stopping
+/// test and the error measure, so every driver stops on the same criterion.
+pub fn solve_by<F>(
+    rows: &[ContactRow],
+    inverses: &BodyInverses,
+    velocity: &mut [Vector3<f64>],
+    angular_velocity: &mut [Vector3<f64>],
+    impulse: &mut [[f64; 3]],
+    options: &NlgsOptions,
+    mut iteration: F,
+) -> NlgsReport
+where
+    F: FnMut(&Sweepable, &mut [[f64; 3]], &mut [[f64; 2]], &mut [BodyState]) -> SweepStats,
+{
     let start = Instant::now();
     assert_eq!(rows.len(), impulse.len(), "one impulse per contact");
-    let mut prepared: Vec<Prepared> = rows.iter().map(|r| Prepared::new(r, inverses)).collect();
-    // The local solvers (W_aa, its inverse, µ): read only by contacts that reach them.
-    let locals: Vec<LocalCoulomb> = prepared
-        .iter()
-        .map(|c| LocalCoulomb::new(&c.w, c.mu))
-        .collect();
     // The bodies' velocities [v, ω], one record per body, for the sweeps.
     let mut state: Vec<BodyState> = velocity
         .iter()
         .zip(angular_velocity.iter())
         .map(|(v, w)| [v.x, v.y, v.z, 0.0, w.x, w.y, w.z, 0.0])
         .collect();
-    for c in &mut prepared {
-        c.resting_first = !c.moves[0] && state[c.bodies[0]] == [0.0; 8];
-    }
+    let prepared: Vec<Prepared> = rows
+        .iter()
+        .map(|r| Prepared::at_state(r, inverses, &state))
+        .collect();
+    // The local solvers (W_aa, its inverse, µ): read only by contacts that reach them.
+    let locals: Vec<LocalCoulomb> = prepared.iter().map(Prepared::local_solver).collect();
+    let contacts = Sweepable { prepared, locals };
+    let prepared = &contacts.prepared;
     let free_norm = prepared
         .iter()
         .flat_map(|c| c.velocity(&state))
@@ -285,45 +434,13 @@ pub fn solve(
         };
         report.error = f64::INFINITY;
         while report.iterations < max_sweeps {
-            let (mut change, mut size) = (0.0, 0.0);
-            for (((c, local), old), direction) in prepared
-                .iter()
-                .zip(&locals)
-                .zip(impulse.iter_mut())
-                .zip(directions.iter_mut())
-            {
-                let u = c.velocity(&state);
-                let w = &c.w;
-                let o = *old;
-                let q = [
-                    u[0] - (w[0] * o[0] + w[1] * o[1] + w[2] * o[2]),
-                    u[1] - (w[3] * o[0] + w[4] * o[1] + w[5] * o[2]),
-                    u[2] - (w[6] * o[0] + w[7] * o[1] + w[8] * o[2]),
-                ];
-                // Take-off (q_N ≥ 0, the most common case among open contacts) without
-                // calling the local solver.
-                let r = if q[0] >= 0.0 {
-                    [0.0; 3]
-                } else {
-                    let (r, status) = local.solve(q, direction);
-                    if status == ContactStatus::Fallback {
-                        report.local_fallbacks += 1;
-                    }
-                    r
-                };
-                let d = [r[0] - o[0], r[1] - o[1], r[2] - o[2]];
-                if d != [0.0; 3] {
-                    c.apply(d, &mut state);
-                }
-                let scale = w[0] * w[0];
-                change += scale * (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-                size += scale * (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]);
-                *old = r;
-            }
+            let stats = iteration(&contacts, impulse, &mut directions, &mut state);
+            report.local_fallbacks += stats.fallbacks;
             report.iterations += 1;
-            let full = options
-                .error_check
-                .due(report.iterations, change, size, tolerance);
+            let full =
+                options
+                    .error_check
+                    .due(report.iterations, stats.change, stats.size, tolerance);
             if full {
                 report.error = measure(impulse, &state);
                 report.error_evaluations += 1;

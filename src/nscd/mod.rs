@@ -40,4 +40,4 @@ pub use body::{Body, BodyShape, Motion, Prescribed};
 pub use coulomb::{ContactStatus, LocalCoulomb};
 pub use nlgs::{ErrorCheck, NlgsOptions, NlgsReport, Stopping};
 pub use problem::{Block3, DelassusBlocks, FrictionProblem};
-pub use step::{FrictionTable, MoreauJean, SolvedContact, StepParams, StepReport};
+pub use step::{DdmSetup, FrictionTable, MoreauJean, SolvedContact, StepParams, StepReport};

@@ -8,7 +8,9 @@
 //! 2. **build**: local frames, lever arms, friction per material pair, the gap shift of
 //!    each contact's normal velocity, warm-start impulses by contact identity, and the
 //!    free velocities `V_free = V_i + h M⁻¹ F_ext` (gyroscopic term explicit);
-//! 3. **solve**: NLGS in body-velocity form ([`super::body_nlgs`]);
+//! 3. **solve**: NLGS in body-velocity form ([`super::body_nlgs`]), or, with a
+//!    [`DdmSetup`], the grains partitioned by mass centre, the contacts renumbered
+//!    subdomain by subdomain then the interface, and the DDM driver of [`crate::ddm`];
 //! 4. **update**: `x_{i+1} = x_i + h((1 − θ) v_i + θ v_{i+1})`, rotations by the
 //!    exponential map `q_{i+1} = q_i exp(h ω_θ)` with ω_θ the θ-average (body frame).
 //!
@@ -33,6 +35,7 @@ use super::body::{Body, Motion};
 use super::body_nlgs::{self, BodyInverses, ContactRow};
 use super::nlgs::{NlgsOptions, NlgsReport};
 use crate::contact::{local_frame, Collider, ContactKey, ContactPoint, Detector, ImpulseMemory};
+use crate::ddm::{self, DdmOptions, Decomposition, Partitioning};
 
 /// Time-stepping parameters.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -113,6 +116,20 @@ pub struct StepReport {
     pub energy_rise: f64,
     /// Wall time per phase: detect, build, solve, update.
     pub phase_times: [Duration; 4],
+    /// Of the solve, with a DDM: the parallel subdomain part and the sequential
+    /// interface part (zero without one).
+    pub solve_split: [Duration; 2],
+    /// Contacts on the interface Γ (0 without a DDM).
+    pub interface_contacts: usize,
+}
+
+/// Domain decomposition of the solve: how grains are partitioned and which driver.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DdmSetup {
+    /// Subdomain boxes.
+    pub partitioning: Partitioning,
+    /// Driver and sweeps per DDM iteration.
+    pub options: DdmOptions,
 }
 
 /// The time-stepping pipeline: owns scratch buffers and the impulse memory; the bodies
@@ -123,7 +140,11 @@ pub struct MoreauJean {
     pub params: StepParams,
     /// NLGS options.
     pub options: NlgsOptions,
+    /// Domain decomposition of the solve (`None`: plain sequential NLGS).
+    pub ddm: Option<DdmSetup>,
     detector: Detector,
+    owner: Vec<Option<u32>>,
+    decomposition: Decomposition,
     memory: ImpulseMemory,
     points: Vec<ContactPoint>,
     rows: Vec<ContactRow>,
@@ -141,7 +162,10 @@ impl MoreauJean {
         MoreauJean {
             params,
             options,
+            ddm: None,
             detector: Detector::new(params.alert_distance),
+            owner: Vec::new(),
+            decomposition: Decomposition::default(),
             memory: ImpulseMemory::new(),
             points: Vec::new(),
             rows: Vec::new(),
@@ -157,6 +181,11 @@ impl MoreauJean {
     /// The contacts of the last step with their impulses.
     pub fn contacts(&self) -> &[SolvedContact] {
         &self.solved
+    }
+
+    /// Each body's subdomain in the last step (`None`: not a grain, or no DDM).
+    pub fn subdomains(&self) -> &[Option<u32>] {
+        &self.owner
     }
 
     /// The impulse memory (warm starts of the next step).
@@ -213,6 +242,23 @@ impl MoreauJean {
             let height = |c: &ContactPoint| -down.dot(&c.point.coords);
             self.points
                 .sort_by(|a, b| height(b).total_cmp(&height(a)).then(a.key.cmp(&b.key)));
+        }
+        self.owner.clear();
+        if let Some(setup) = &self.ddm {
+            // Grains to subdomains by mass centre; contacts subdomain by subdomain, then
+            // the interface, each block keeping the order above.
+            let centres: Vec<Vector3<f64>> = bodies.iter().map(|b| b.position).collect();
+            let movable: Vec<bool> = bodies.iter().map(Body::is_dynamic).collect();
+            self.owner = setup.partitioning.assign(&centres, &movable);
+            let pairs: Vec<[usize; 2]> = self
+                .points
+                .iter()
+                .map(|c| [c.key.body_a as usize, c.key.body_b as usize])
+                .collect();
+            let (order, decomposition) =
+                ddm::decompose(&pairs, &self.owner, setup.partitioning.subdomains());
+            self.points = order.iter().map(|&k| self.points[k]).collect();
+            self.decomposition = decomposition;
         }
         phase_times[0] = clock.elapsed();
 
@@ -287,14 +333,33 @@ impl MoreauJean {
             inverse_mass: &self.inverse_mass,
             inverse_inertia: &self.inverse_inertia,
         };
-        let nlgs = body_nlgs::solve(
-            &self.rows,
-            &inverses,
-            &mut self.velocity,
-            &mut self.angular,
-            &mut self.impulses,
-            &self.options,
-        );
+        let mut solve_split = [Duration::ZERO; 2];
+        let mut interface_contacts = 0;
+        let nlgs = match &self.ddm {
+            None => body_nlgs::solve(
+                &self.rows,
+                &inverses,
+                &mut self.velocity,
+                &mut self.angular,
+                &mut self.impulses,
+                &self.options,
+            ),
+            Some(setup) => {
+                let report = ddm::solve(
+                    &self.rows,
+                    &self.decomposition,
+                    &inverses,
+                    &mut self.velocity,
+                    &mut self.angular,
+                    &mut self.impulses,
+                    &self.options,
+                    &setup.options,
+                );
+                solve_split = [report.subdomain_time, report.interface_time];
+                interface_contacts = self.decomposition.interface.len();
+                report.nlgs
+            }
+        };
         phase_times[2] = clock.elapsed();
 
         // 4. Update positions and rotations; energy bookkeeping.
@@ -368,6 +433,8 @@ impl MoreauJean {
             external_work,
             energy_rise: kinetic_energy - kinetic_before - external_work,
             phase_times,
+            solve_split,
+            interface_contacts,
         }
     }
 }
