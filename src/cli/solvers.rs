@@ -21,7 +21,7 @@ pub struct PackCli {
 
 /// Runs `ballast-pack`.
 pub fn run_pack(cli: PackCli) -> crate::Result<()> {
-    crate::pack::run::run(&cli.run.context()?)
+    cli.run.context()?.run_on_pool(crate::pack::run::run)?
 }
 
 /// `ballast-nscd`: non-smooth contact dynamics of rigid polyhedra.
@@ -72,7 +72,7 @@ pub fn run_nscd(cli: NscdCli) -> crate::Result<()> {
             }),
             _,
         ) => super::fc3d::run(&file, tol, max_iter, json),
-        (None, Some(run)) => crate::nscd::run::run(&run.context()?),
+        (None, Some(run)) => run.context()?.run_on_pool(crate::nscd::run::run)?,
         (None, None) => Err(crate::Error::Message(
             "ballast-nscd: give a SCENE.toml or a sub-command (see --help)".into(),
         )),

@@ -36,10 +36,16 @@
 
 use nalgebra::{Isometry3, Point3, Unit, Vector3};
 use parry3d_f64::shape::{PackedFeatureId, SupportMap};
+use rayon::prelude::*;
 
 use super::broad::{aabb_of, candidate_pairs, BroadShape};
 use super::shape::{Collider, ConvexShape};
 use super::{ContactKey, ContactPoint};
+
+/// Candidate pairs per parallel task of the narrow phase (a pair of stones costs a few
+/// µs, so a task is a few hundred µs: large beside rayon's overhead, small beside a
+/// step).
+const PAIRS_PER_TASK: usize = 128;
 
 /// Contact detection with an alert distance, and its scratch space.
 #[derive(Debug, Clone)]
@@ -84,14 +90,27 @@ impl Detector {
             });
         }
         let reach = |i: usize| self.reach.get(i).copied().unwrap_or(0.0);
-        for (i, j) in candidate_pairs(&self.broad, movable, self.alert_distance, &self.reach) {
-            let (i, j) = (i as usize, j as usize);
-            pair_contacts(
-                (i, colliders[i], &poses[i]),
-                (j, colliders[j], &poses[j]),
-                self.alert_distance.max(reach(i) + reach(j)),
-                out,
-            );
+        let pairs = candidate_pairs(&self.broad, movable, self.alert_distance, &self.reach);
+        // The narrow phase in parallel over chunks of the sorted pairs, concatenated in
+        // order: the same points in the same order on any number of threads.
+        let chunks: Vec<Vec<ContactPoint>> = pairs
+            .par_chunks(PAIRS_PER_TASK)
+            .map(|chunk| {
+                let mut points = Vec::new();
+                for &(i, j) in chunk {
+                    let (i, j) = (i as usize, j as usize);
+                    pair_contacts(
+                        (i, colliders[i], &poses[i]),
+                        (j, colliders[j], &poses[j]),
+                        self.alert_distance.max(reach(i) + reach(j)),
+                        &mut points,
+                    );
+                }
+                points
+            })
+            .collect();
+        for points in chunks {
+            out.extend(points);
         }
     }
 }

@@ -23,9 +23,14 @@
 use std::time::{Duration, Instant};
 
 use nalgebra::{Matrix3, Vector3};
+use rayon::prelude::*;
 
 use super::coulomb::{coulomb_residual_squared, ContactStatus, LocalCoulomb};
 use super::nlgs::{NlgsOptions, NlgsReport, Stopping};
+
+/// Contacts per parallel task of the error measure (fixed, so that its partial sums,
+/// and so the stopping decision, do not depend on the thread count).
+const MEASURE_CHUNK: usize = 1024;
 
 /// One contact of the body-velocity problem.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -411,19 +416,35 @@ where
         Stopping::Sweeps(n) => (f64::NEG_INFINITY, n),
     };
     if !rows.is_empty() {
+        // In parallel over fixed chunks of contacts, the partial sums added in chunk
+        // order: the same value on any number of threads.
         let measure = |impulse: &[[f64; 3]], state: &[BodyState]| {
+            let parts: Vec<[f64; 3]> = prepared
+                .par_chunks(MEASURE_CHUNK)
+                .zip(impulse.par_chunks(MEASURE_CHUNK))
+                .map(|(contacts, impulse)| {
+                    let (mut sum, mut r_norm, mut u_norm) = (0.0, 0.0, 0.0);
+                    for (c, r) in contacts.iter().zip(impulse) {
+                        let u = c.velocity(state);
+                        u_norm += u[0] * u[0] + u[1] * u[1] + u[2] * u[2];
+                        if *r == [0.0; 3] && u[0] >= 0.0 {
+                            // Open and separating: the residual is exactly zero
+                            // (Π_K(−ũ) = 0 when u_N ≥ 0, in floating point too), r̂ = 0.
+                            continue;
+                        }
+                        let scaled = [c.w[0] * r[0], c.w[0] * r[1], c.w[0] * r[2]];
+                        sum += coulomb_residual_squared(scaled, u, c.mu);
+                        r_norm +=
+                            scaled[0] * scaled[0] + scaled[1] * scaled[1] + scaled[2] * scaled[2];
+                    }
+                    [sum, r_norm, u_norm]
+                })
+                .collect();
             let (mut sum, mut r_norm, mut u_norm) = (0.0, 0.0, 0.0);
-            for (c, r) in prepared.iter().zip(impulse) {
-                let u = c.velocity(state);
-                u_norm += u[0] * u[0] + u[1] * u[1] + u[2] * u[2];
-                if *r == [0.0; 3] && u[0] >= 0.0 {
-                    // Open and separating: the residual is exactly zero (Π_K(−ũ) = 0
-                    // when u_N ≥ 0, in floating point too) and r̂ = 0.
-                    continue;
-                }
-                let scaled = [c.w[0] * r[0], c.w[0] * r[1], c.w[0] * r[2]];
-                sum += coulomb_residual_squared(scaled, u, c.mu);
-                r_norm += scaled[0] * scaled[0] + scaled[1] * scaled[1] + scaled[2] * scaled[2];
+            for p in parts {
+                sum += p[0];
+                r_norm += p[1];
+                u_norm += p[2];
             }
             let scale = free_norm.max(r_norm.sqrt()).max(u_norm.sqrt());
             if scale > f64::EPSILON {

@@ -44,7 +44,9 @@ use crate::geometry::random::SplitMix;
 use crate::nscd::body::{Body, BodyShape, Motion, Prescribed};
 use crate::nscd::nlgs::{ErrorCheck, NlgsOptions, Stopping};
 use crate::nscd::scene::StoneShape;
-use crate::nscd::step::{FrictionTable, MoreauJean, SolvedContact, StepParams, StepReport};
+use crate::nscd::step::{
+    DdmSetup, FrictionTable, MoreauJean, SolvedContact, StepParams, StepReport,
+};
 
 /// Solid fraction assumed when counting the stones of a phase (above any gravity
 /// deposit of angular grains, so the heap overfills the level before the strike-off).
@@ -126,6 +128,9 @@ pub struct DepositSetup {
     pub rain_friction: FrictionTable,
     /// Settling criterion: rms speed (m/s).
     pub settle_speed: f64,
+    /// Finishing phases also need every overlap below this (m): pushed out at the
+    /// depenetration speed, the deep overlaps of raining take a while to go.
+    pub max_overlap: f64,
     /// Cap on a phase's simulated time (s).
     pub max_phase_time: f64,
     /// Cap on the number of stones.
@@ -135,6 +140,8 @@ pub struct DepositSetup {
     pub drag_time: Option<f64>,
     /// Seed.
     pub seed: u64,
+    /// Domain decomposition of the contact solve (`None`: sequential NLGS).
+    pub ddm: Option<DdmSetup>,
 }
 
 /// How one phase ended.
@@ -187,6 +194,10 @@ pub struct Deposition {
     pub body_steps: u64,
     /// Wall time per engine phase: detect, build, solve, update.
     pub phase_times: [Duration; 4],
+    /// Of the solve, with a DDM: the parallel subdomain part, the sequential interface.
+    pub solve_split: [Duration; 2],
+    /// Σ over steps of the contacts, and of those on the DDM interface.
+    pub contact_steps: [u64; 2],
     /// Wall time stepping.
     pub stepping: Duration,
     /// Phases done.
@@ -240,6 +251,8 @@ impl Deposition {
             steps: 0,
             body_steps: 0,
             phase_times: [Duration::ZERO; 4],
+            solve_split: [Duration::ZERO; 2],
+            contact_steps: [0; 2],
             stepping: Duration::ZERO,
             phases: Vec::new(),
             engine,
@@ -250,16 +263,20 @@ impl Deposition {
     }
 
     fn engine(setup: &DepositSetup) -> MoreauJean {
-        MoreauJean::new(
+        let mut engine = MoreauJean::new(
             setup.params,
             NlgsOptions {
                 stopping: Stopping::Tolerance {
                     tolerance: setup.tolerance,
                     max_sweeps: setup.max_sweeps,
                 },
-                error_check: ErrorCheck::EverySweep,
+                // The full measure costs about a sweep: every tenth sweep, or when the
+                // impulse change alone says converged.
+                error_check: ErrorCheck::Light { every: 10 },
             },
-        )
+        );
+        engine.ddm = setup.ddm.clone();
+        engine
     }
 
     /// The contact points of the current configuration (a detection without a step).
@@ -317,6 +334,11 @@ impl Deposition {
         for (total, t) in self.phase_times.iter_mut().zip(report.phase_times) {
             *total += t;
         }
+        for (total, t) in self.solve_split.iter_mut().zip(report.solve_split) {
+            *total += t;
+        }
+        self.contact_steps[0] += report.contacts as u64;
+        self.contact_steps[1] += report.interface_contacts as u64;
         self.steps += 1;
         self.time = self.steps as f64 * self.setup.params.dt;
         self.body_steps += self.bodies.iter().filter(|b| b.is_dynamic()).count() as u64;
@@ -333,15 +355,18 @@ impl Deposition {
     /// Whether the bed has settled: the rms speed below `settle_speed`, and once
     /// finishing ([`Self::finish`]) also no body point faster than [`MAX_SPEED_FACTOR`]
     /// times it (a lone stone still sliding down a sleeper's side hides in the rms of
-    /// hundreds at rest; the intermediate phases only need a quiet heap).
-    fn settled(&self, kinetic_energy: f64) -> bool {
+    /// hundreds at rest; the intermediate phases only need a quiet heap) and no overlap
+    /// deeper than `max_overlap` (one still being pushed out moves a stone slowly
+    /// enough to pass the speed tests).
+    fn settled(&self, report: &StepReport) -> bool {
         let limit = self.setup.settle_speed;
-        self.rms_speed(kinetic_energy) < limit
+        self.rms_speed(report.kinetic_energy) < limit
             && (!self.finishing
-                || self.bodies.iter().filter(|b| b.is_dynamic()).all(|b| {
-                    b.velocity.norm() + b.angular_velocity.norm() * b.shape.bounding_radius()
-                        < MAX_SPEED_FACTOR * limit
-                }))
+                || (report.max_interpenetration < self.setup.max_overlap
+                    && self.bodies.iter().filter(|b| b.is_dynamic()).all(|b| {
+                        b.velocity.norm() + b.angular_velocity.norm() * b.shape.bounding_radius()
+                            < MAX_SPEED_FACTOR * limit
+                    })))
     }
 
     /// rms speed √(2 KE / Σm) of the dynamic bodies (m/s).
@@ -542,7 +567,7 @@ impl Deposition {
         let start = self.time;
         while self.time - start < self.setup.max_phase_time {
             let report = self.step(raining_friction, name, observe);
-            if self.settled(report.kinetic_energy) {
+            if self.settled(&report) {
                 return true;
             }
         }

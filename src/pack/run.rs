@@ -26,15 +26,20 @@ use super::report::{
     Compactness,
 };
 use super::scene::BedScene;
+use crate::ddm::Partitioning;
 use crate::geometry::ControlBox;
 use crate::nscd::body::{Body, BodyShape};
 use crate::nscd::motion::{mesh_pieces, Pieces};
 use crate::nscd::run::grains_grid;
-use crate::nscd::scene::{read_stone_shapes, NscdScene};
+use crate::nscd::scene::{read_stone_shapes, NscdScene, StoneShape};
 use crate::nscd::step::{FrictionTable, StepParams};
 use crate::output::{write_json, write_vtu, CsvSeries, Grid, PvdWriter};
 use crate::scene::{PhaseTimer, RunContext, Summary};
 use crate::{Error, Result};
+
+/// Default `deposit.max_overlap` over the family's d50: half the acceptance bound of
+/// 0.1 % (the final measure comes one step after the last check).
+pub const DEFAULT_OVERLAP_OVER_D50: f64 = 5e-4;
 
 /// A sleeper model and how its placement frame sits in its mesh (or cuboid) frame.
 struct SleeperSource {
@@ -161,6 +166,34 @@ pub fn run(ctx: &RunContext) -> Result<()> {
     let sleeper = sleeper_source(&scene, &ctx.scene_path)?;
     let (friction, rain_friction) = friction_tables(&scene);
     let d = &scene.deposit;
+    let family_d50 = median(&family.iter().map(StoneShape::diameter).collect::<Vec<_>>());
+    let nominal: Vec<[f64; 2]> = match &scene.sleepers {
+        Some(s) => (0..s.count)
+            .map(|k| {
+                let x = 0.5 * scene.bed.length.si()
+                    + (k as f64 - 0.5 * (s.count as f64 - 1.0)) * s.spacing.si();
+                [x, 0.0]
+            })
+            .collect(),
+        None => Vec::new(),
+    };
+    // The seed's partition: one slab per sleeper, cut midway between neighbours (two
+    // equal slabs without sleepers); the scene's [deposit.ddm] may give another.
+    let (length, width) = (scene.bed.length.si(), scene.bed.width.si());
+    let per_sleeper = if nominal.len() >= 2 {
+        Partitioning::Slabs {
+            axis: 0,
+            cuts: nominal
+                .windows(2)
+                .map(|w| 0.5 * (w[0][0] + w[1][0]))
+                .collect(),
+        }
+    } else {
+        Partitioning::even_slabs(0, 0.0, length, 2)
+    };
+    let ddm = d
+        .ddm
+        .setup([0.0, length, -0.5 * width, 0.5 * width], per_sleeper);
     let setup = DepositSetup {
         family,
         stone_density: scene.density(&scene.stones.material),
@@ -180,10 +213,14 @@ pub fn run(ctx: &RunContext) -> Result<()> {
         friction,
         rain_friction,
         settle_speed: d.settle_speed.si(),
+        max_overlap: d
+            .max_overlap
+            .map_or_else(|| DEFAULT_OVERLAP_OVER_D50 * family_d50, |l| l.si()),
         max_phase_time: d.max_phase_time.si(),
         max_stones: scene.stones.count.unwrap_or(usize::MAX),
         drag_time: d.drag_time.map(|t| t.si()),
         seed: scene.seed,
+        ddm,
     };
     let mut bed = Deposition::new(setup);
     std::fs::create_dir_all(ctx.out_dir.join("frames")).map_err(|e| Error::io(&ctx.out_dir, e))?;
@@ -271,16 +308,6 @@ pub fn run(ctx: &RunContext) -> Result<()> {
         bar.tick();
     };
 
-    let nominal: Vec<[f64; 2]> = match &scene.sleepers {
-        Some(s) => (0..s.count)
-            .map(|k| {
-                let x = 0.5 * scene.bed.length.si()
-                    + (k as f64 - 0.5 * (s.count as f64 - 1.0)) * s.spacing.si();
-                [x, 0.0]
-            })
-            .collect(),
-        None => Vec::new(),
-    };
     match &sleeper {
         Some(source) => {
             bed.fill("under-sleeper layer", 0.0, depth, true, &mut observe);
@@ -316,6 +343,10 @@ pub fn run(ctx: &RunContext) -> Result<()> {
     {
         timer.add(name, t);
     }
+    if bed.setup.ddm.is_some() {
+        timer.add("solve: subdomains (parallel)", bed.solve_split[0]);
+        timer.add("solve: interface (sequential)", bed.solve_split[1]);
+    }
     let other = wall_deposit.saturating_sub(bed.stepping);
     timer.add("frames and csv", other);
 
@@ -323,6 +354,22 @@ pub fn run(ctx: &RunContext) -> Result<()> {
     let clock = Instant::now();
     let final_contacts = bed.detect();
     let (max_pen, mean_pen) = interpenetration(&final_contacts);
+    // Where the deepest overlap is: the bed's body indices and roles, and the point to
+    // find it in ParaView.
+    let deepest = final_contacts
+        .iter()
+        .min_by(|a, b| a.gap.total_cmp(&b.gap))
+        .filter(|c| c.gap < 0.0)
+        .map(|c| {
+            let (a, b) = (c.key.body_a as usize, c.key.body_b as usize);
+            json!({
+                "bodies": [a, b],
+                "roles": [format!("{:?}", bed.roles[a]), format!("{:?}", bed.roles[b])],
+                "point_m": [c.point.x, c.point.y, c.point.z],
+                "normal": [c.normal.x, c.normal.y, c.normal.z],
+                "depth_m": -c.gap,
+            })
+        });
     let (coordination, coordination_walls) = coordination_numbers(&bed.roles, bed.last_contacts());
     let diameters = bed.stone_diameters();
     if diameters.is_empty() {
@@ -420,6 +467,7 @@ pub fn run(ctx: &RunContext) -> Result<()> {
         .figure("d50_m", d50)
         .figure("compactness", compactness_json)
         .figure("max_interpenetration_m", max_pen)
+        .figure("deepest_overlap", deepest)
         .figure("mean_interpenetration_m", mean_pen)
         .figure("max_interpenetration_over_d50", max_pen / d50)
         .figure("mean_interpenetration_over_d50", mean_pen / d50)

@@ -34,8 +34,12 @@
 //! depenetration_speed = "2 mm/s"        # overlaps of unconverged steps pushed out
 //! friction = 0.3                        # µ between stones while raining (then the table's)
 //! settle_speed = "5 mm/s"               # rms speed below which the bed has settled
+//! max_overlap = "20 µm"                 # final phases also need overlaps below this
+//!                                       # (default 0.05 % of the family's d50)
 //! max_phase_time = "4 s"                # a phase that has not settled by then is reported
 //! drag_time = "0.1 s"                   # optional drag while raining (terminal 1 m/s)
+//! ddm = { driver = "synchronous" }      # DDM of the solve (crate::scene::DdmSpec;
+//!                                       # default: one slab per sleeper)
 //!
 //! [compaction]                          # optional: the floor vibrates vertically
 //! amplitude = "1 mm"
@@ -52,7 +56,7 @@ use std::path::PathBuf;
 use serde::Deserialize;
 
 use crate::nscd::scene::{FrictionSpec, MaterialSpec};
-use crate::scene::{Frequency, Length, Time, Validate, Validator, Velocity};
+use crate::scene::{DdmSpec, Frequency, Length, Time, Validate, Validator, Velocity};
 
 /// A whole bed scene.
 #[derive(Debug, Clone, Deserialize)]
@@ -173,12 +177,20 @@ pub struct DepositSpec {
     pub friction: Option<f64>,
     /// The bed has settled when the rms speed of the stones is below this.
     pub settle_speed: Velocity,
+    /// The final phases also need every overlap below this (default 0.05 % of the
+    /// family's d50).
+    #[serde(default)]
+    pub max_overlap: Option<Length>,
     /// A phase (raining, settling, compaction) stops after this simulated time.
     pub max_phase_time: Time,
     /// Relaxation time of a linear drag on the stones while raining and settling
     /// (terminal speed g τ; none by default). The final settle runs without it.
     #[serde(default)]
     pub drag_time: Option<Time>,
+    /// Domain decomposition of the contact solve (default: synchronous, one slab per
+    /// sleeper).
+    #[serde(default)]
+    pub ddm: DdmSpec,
 }
 
 /// `[compaction]`: the floor vibrates vertically, `A sin(2πft)`, whole cycles.
@@ -290,6 +302,7 @@ impl Validate for BedScene {
         if let Some(n) = self.stones.count {
             v.check("stones.count", n > 0, "must be at least 1");
         }
+        v.nested("deposit.ddm", &self.deposit.ddm);
         v.positive("bed.length", self.bed.length);
         v.positive("bed.width", self.bed.width);
         v.positive("bed.depth", self.bed.depth);
@@ -352,6 +365,9 @@ impl Validate for BedScene {
             );
         }
         v.positive("deposit.settle_speed", d.settle_speed);
+        if let Some(l) = d.max_overlap {
+            v.positive("deposit.max_overlap", l);
+        }
         v.positive("deposit.max_phase_time", d.max_phase_time);
         if let Some(tau) = d.drag_time {
             v.positive("deposit.drag_time", tau);

@@ -18,6 +18,7 @@
 //! Avoid `#[serde(flatten)]` and untagged enums in scene structs: serde then buffers
 //! the values, which loses both `deny_unknown_fields` and the key path of errors.
 
+mod ddm;
 mod load;
 mod material;
 mod quantity;
@@ -26,6 +27,7 @@ mod summary;
 pub mod units;
 mod validate;
 
+pub use ddm::DdmSpec;
 pub use load::{
     apply_preset, deserialize_table, load_scene, load_scene_with_overrides, load_scene_with_source,
     merge_tables, parse_table, scene_from_str, PRESET_TABLE,

@@ -105,6 +105,17 @@ impl RunContext {
         load_scene_with_overrides(&self.scene_path, self.preset.as_deref(), &self.overrides)
     }
 
+    /// Sizes the pool ([`Self::configure_threads`]) and runs `f` on one of its worker
+    /// threads. The NSCD solvers start several parallel loops per NLGS iteration; from
+    /// the main thread each would be injected into the pool and the main thread put
+    /// to sleep until it ends (a futex round trip per loop: a fifth of the quick bed's
+    /// wall time went to the kernel on one thread), while from a worker the loop just
+    /// runs.
+    pub fn run_on_pool<R: Send>(&self, f: impl FnOnce(&RunContext) -> R + Send) -> Result<R> {
+        self.configure_threads()?;
+        Ok(rayon::scope(|_| f(self)))
+    }
+
     /// Sizes rayon's global pool to the requested thread count and returns the number
     /// of threads the run will use. Calling it again with the same count is fine; a
     /// different count after the pool exists is an error.
