@@ -79,13 +79,17 @@ fn quick_bed_is_settled_dense_and_inside_its_box() {
         "a phase did not settle: {}",
         f["phases"]
     );
-    // Issue #6: final interpenetration below 0.1 % of d50 (the mean over touching
-    // contacts, as drop_box's acceptance); the deepest point is reported and bounded at
-    // 1 % of d50 (0.4 mm).
+    // Issue #6: final interpenetration below 0.1 % of d50, the deepest point as well as
+    // the mean over touching contacts (the final settle waits for every overlap to be
+    // below 0.05 % of d50).
     let mean = figure(&f, "mean_interpenetration_over_d50");
     let max = figure(&f, "max_interpenetration_over_d50");
     assert!(mean < 1e-3, "mean interpenetration {mean} d50");
-    assert!(max < 1e-2, "max interpenetration {max} d50");
+    assert!(
+        max < 1e-3,
+        "max interpenetration {max} d50: {}",
+        f["deepest_overlap"]
+    );
     // Compactness (solid fraction) per control box, exact by clipping. Railway ballast
     // in track: 0.55–0.65 (porosity 0.35–0.45; Indraratna, Salim & Rujikiatkamjorn,
     // *Advanced Rail Geotechnology – Ballasted Track*, 2011). A gravity deposit without
@@ -178,6 +182,8 @@ fn the_same_seed_gives_the_same_packing_on_one_and_two_threads() {
     let two = quick();
     let a = std::fs::read(one.join("packing.toml")).unwrap();
     let b = std::fs::read(two.join("packing.toml")).unwrap();
+    // The synchronous DDM (one slab per sleeper) runs the subdomains in parallel: the
+    // packing must not depend on how many threads share them.
     assert!(a == b, "packing.toml differs between 1 and 2 threads");
     let _ = std::fs::remove_dir_all(one);
 }

@@ -25,6 +25,7 @@ use super::nlgs::{ErrorCheck, NlgsOptions, Stopping};
 use super::scene::{DrivenBody, Model, NscdScene};
 use super::step::{MoreauJean, SolvedContact, StepParams};
 use crate::contact::Collider;
+use crate::ddm::Partitioning;
 use crate::output::{write_json, CsvSeries, Grid, PvdWriter};
 use crate::scene::{PhaseTimer, RunContext, Summary};
 use crate::{Error, Result};
@@ -61,6 +62,25 @@ pub fn run(ctx: &RunContext) -> Result<()> {
         error_check: ErrorCheck::EverySweep,
     };
     let mut pipeline = MoreauJean::new(params, options);
+    if let Some(spec) = &scene.ddm {
+        // Default partition: two equal slabs along x over the grains' extent.
+        let grains: Vec<&Body> = bodies.iter().filter(|b| b.is_dynamic()).collect();
+        let (lo, hi) = grains.iter().fold(
+            ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]),
+            |(lo, hi), b| {
+                (
+                    [lo[0].min(b.position.x), lo[1].min(b.position.y)],
+                    [hi[0].max(b.position.x), hi[1].max(b.position.y)],
+                )
+            },
+        );
+        let extent = if grains.is_empty() {
+            [0.0; 4]
+        } else {
+            [lo[0], hi[0], lo[1], hi[1]]
+        };
+        pipeline.ddm = spec.setup(extent, Partitioning::even_slabs(0, extent[0], extent[1], 2));
+    }
     let dynamic = bodies.iter().filter(|b| b.is_dynamic()).count();
     println!(
         "ballast-nscd: {} — {} bodies ({dynamic} dynamic), {steps} steps of {dt:.3e} s, θ = {}, \
@@ -74,7 +94,7 @@ pub fn run(ctx: &RunContext) -> Result<()> {
         .iter()
         .any(|b| !b.is_dynamic() && b.shape.collider.is_bounded());
     let mut outputs = Outputs::create(&ctx.out_dir, has_driven_vtk)?;
-    outputs.frame(0.0, &bodies, &[])?;
+    outputs.frame(0.0, &bodies, &[], &[])?;
     let frame_every = if scene.output.frames == 0 {
         u64::MAX
     } else {
@@ -121,6 +141,10 @@ pub fn run(ctx: &RunContext) -> Result<()> {
         for (k, name) in ["detect", "build", "solve", "update"].iter().enumerate() {
             timer.add(name, report.phase_times[k]);
         }
+        if pipeline.ddm.is_some() {
+            timer.add("solve: subdomains (parallel)", report.solve_split[0]);
+            timer.add("solve: interface (sequential)", report.solve_split[1]);
+        }
         stats.record(&report, &bodies, &initial);
         outputs.residuals.push(&[
             time,
@@ -156,7 +180,7 @@ pub fn run(ctx: &RunContext) -> Result<()> {
         }
         if step % frame_every == 0 || step == steps {
             let clock = Instant::now();
-            outputs.frame(time, &bodies, pipeline.contacts())?;
+            outputs.frame(time, &bodies, pipeline.contacts(), pipeline.subdomains())?;
             frames_s += clock.elapsed().as_secs_f64();
             bar.set_position(step);
         }
@@ -555,13 +579,19 @@ impl Outputs {
         })
     }
 
-    fn frame(&mut self, time: f64, bodies: &[Body], contacts: &[SolvedContact]) -> Result<()> {
+    fn frame(
+        &mut self,
+        time: f64,
+        bodies: &[Body],
+        contacts: &[SolvedContact],
+        subdomains: &[Option<u32>],
+    ) -> Result<()> {
         let name = format!("frames/grains_{:04}.vtu", self.frames);
         self.grains
-            .write_frame(time, &name, &grains_grid(bodies, true)?)?;
+            .write_frame(time, &name, &grains_grid(bodies, true, subdomains)?)?;
         if let Some(driven) = &mut self.driven {
             let name = format!("frames/driven_{:04}.vtu", self.frames);
-            driven.write_frame(time, &name, &grains_grid(bodies, false)?)?;
+            driven.write_frame(time, &name, &grains_grid(bodies, false, &[])?)?;
         }
         let name = format!("frames/contacts_{:04}.vtu", self.frames);
         self.contacts
@@ -572,12 +602,14 @@ impl Outputs {
 }
 
 /// Polyhedral bodies as triangulated surfaces: the dynamic ones (`dynamic`) or the
-/// driven and fixed ones.
-pub fn grains_grid(bodies: &[Body], dynamic: bool) -> Result<Grid> {
+/// driven and fixed ones, with each body's `id` and DDM `subdomain` (from `subdomains`,
+/// one entry per body; −1 for none or an empty slice).
+pub fn grains_grid(bodies: &[Body], dynamic: bool, subdomains: &[Option<u32>]) -> Result<Grid> {
     let mut points = Vec::new();
     let mut triangles = Vec::new();
     let mut velocity = Vec::new();
     let mut ids = Vec::new();
+    let mut domains = Vec::new();
     for (k, body) in bodies.iter().enumerate() {
         if !matches!(body.shape.collider, Collider::Convex(_)) || body.is_dynamic() != dynamic {
             continue;
@@ -594,11 +626,19 @@ pub fn grains_grid(bodies: &[Body], dynamic: bool) -> Result<Grid> {
         for t in &body.shape.triangles {
             triangles.push(t.map(|i| base + i as usize));
             ids.push(k as i32);
+            domains.push(
+                subdomains
+                    .get(k)
+                    .copied()
+                    .flatten()
+                    .map_or(-1, |d| d as i32),
+            );
         }
     }
     let mut grid = Grid::triangles(points, &triangles)?;
     grid.add_point_field("velocity_m_per_s", 3, velocity)?;
     grid.add_cell_field("id", 1, ids)?;
+    grid.add_cell_field("subdomain", 1, domains)?;
     Ok(grid)
 }
 

@@ -10,6 +10,9 @@
 //! dt = "1 ms"
 //! theta = 0.5                       # θ-method, 0.5 ≤ θ ≤ 1
 //!
+//! [ddm]                             # optional: domain decomposition of the solve
+//! driver = "synchronous"            # crate::scene::DdmSpec (default: 2 slabs along x)
+//!
 //! [solver]
 //! tolerance = 1e-8                  # or: sweeps = 50 (fixed count, the seed's n_DDM)
 //! max_sweeps = 2000
@@ -81,7 +84,7 @@ use super::motion::{mesh_pieces, Pieces, VelocityTable};
 use super::step::FrictionTable;
 use crate::geometry::random::SplitMix;
 use crate::scene::{
-    Acceleration, Angle, Density, Frequency, Length, Time, Validate, Validator, Velocity,
+    Acceleration, Angle, DdmSpec, Density, Frequency, Length, Time, Validate, Validator, Velocity,
 };
 use crate::{Error, Result};
 
@@ -91,6 +94,9 @@ use crate::{Error, Result};
 pub struct NscdScene {
     /// Time stepping.
     pub time: TimeSpec,
+    /// Domain decomposition of the contact solve (none: sequential NLGS).
+    #[serde(default)]
+    pub ddm: Option<DdmSpec>,
     /// NLGS and detection.
     pub solver: SolverSpec,
     /// Gravity.
@@ -529,6 +535,7 @@ impl Validate for NscdScene {
     fn validate(&self, v: &mut Validator) {
         v.positive("time.duration", self.time.duration);
         v.positive("time.dt", self.time.dt);
+        v.nested("ddm", &self.ddm);
         v.in_range("time.theta", self.time.theta, 0.5, 1.0);
         if let Some(tol) = self.solver.tolerance {
             v.positive("solver.tolerance", tol);

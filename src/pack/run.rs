@@ -427,11 +427,14 @@ pub fn run(ctx: &RunContext) -> Result<()> {
     )?;
     packing.write(&ctx.out_dir.join("packing.toml"))?;
     let (stones, sleepers) = split(&bed.bodies, &bed.roles);
-    write_vtu(ctx.out_dir.join("stones.vtu"), &grains_grid(&stones, true)?)?;
+    write_vtu(
+        ctx.out_dir.join("stones.vtu"),
+        &grains_grid(&stones, true, &[])?,
+    )?;
     if !sleepers.is_empty() {
         write_vtu(
             ctx.out_dir.join("sleepers.vtu"),
-            &grains_grid(&sleepers, true)?,
+            &grains_grid(&sleepers, true, &[])?,
         )?;
     }
     write_vtu(ctx.out_dir.join("control_boxes.vtu"), &boxes_grid(&solid)?)?;
@@ -539,7 +542,7 @@ fn split(bodies: &[Body], roles: &[Role]) -> (Vec<Body>, Vec<Body>) {
 
 /// Stones and sleepers in one grid, cell field `sleeper` (1 on sleepers).
 fn bed_grid(bodies: &[Body], roles: &[Role]) -> Result<Grid> {
-    let mut grid = grains_grid(bodies, true)?;
+    let mut grid = grains_grid(bodies, true, &[])?;
     let kinds: Vec<i32> = bodies
         .iter()
         .zip(roles)
