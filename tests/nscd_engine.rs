@@ -243,3 +243,94 @@ fn driven_box_and_tine_push_blocks_at_their_speed_against_floor_friction() {
         );
     }
 }
+
+/// Runs drop_box's quick preset with `[ddm]` set by `--set` on `threads` threads.
+fn run_drop_box_ddm(driver: &str, threads: usize, out: &Path) -> Value {
+    let output = Command::new(NSCD)
+        .arg(root().join("scenes/drop_box.toml"))
+        .args(["--preset", "quick", "--threads", &threads.to_string()])
+        .args([
+            "--set",
+            &format!("ddm.driver=\"{driver}\""),
+            "--set",
+            "ddm.slabs=2",
+        ])
+        .arg("--out")
+        .arg(out)
+        .output()
+        .expect("ballast-nscd runs");
+    assert!(
+        output.status.success(),
+        "{driver}: {}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let text = std::fs::read_to_string(out.join("summary.json")).unwrap();
+    serde_json::from_str::<Value>(&text).unwrap()["figures"].clone()
+}
+
+#[test]
+fn ddm_drivers_settle_the_drop_box_and_do_not_depend_on_the_thread_count() {
+    // Issue #7: the synchronous DDM (two slabs, subdomains in parallel, then the
+    // interface) gives the same run on 1 and 2 threads, step by step (residuals.csv:
+    // contacts, sweeps, NLGS error, interpenetration and energies of every step).
+    let dir = tempfile::tempdir().unwrap();
+    let (one, two, asyn) = (
+        dir.path().join("sync-1"),
+        dir.path().join("sync-2"),
+        dir.path().join("async-2"),
+    );
+    let f = run_drop_box_ddm("synchronous", 1, &one);
+    run_drop_box_ddm("synchronous", 2, &two);
+    let residuals = |d: &Path| std::fs::read(d.join("residuals.csv")).unwrap();
+    assert!(
+        residuals(&one) == residuals(&two),
+        "residuals.csv differs between 1 and 2 threads"
+    );
+    // Both drivers keep drop_box's physical checks (the bounds of the plain test).
+    let g = run_drop_box_ddm("asynchronous", 2, &asyn);
+    for (driver, f) in [("synchronous", &f), ("asynchronous", &g)] {
+        assert!(
+            figure(f, "max_energy_rise_relative") <= 1e-6,
+            "{driver}: {f}"
+        );
+        assert!(
+            figure(f, "final_mean_interpenetration_over_d50") < 1e-3,
+            "{driver}: {f}"
+        );
+        assert!(
+            figure(f, "final_max_interpenetration_over_d50") < 5e-3,
+            "{driver}: {f}"
+        );
+        assert!(
+            figure(f, "final_kinetic_energy_J") < 1e-2 * figure(f, "max_kinetic_energy_J"),
+            "{driver}: {f}"
+        );
+    }
+    // Every grain of the last frame carries its subdomain (0 or 1), read by VTK.
+    let frames: Vec<PathBuf> = std::fs::read_dir(two.join("frames"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.to_string_lossy().contains("grains_"))
+        .collect();
+    let last = frames.iter().max().unwrap().clone();
+    let read = common::read_with_vtk(std::slice::from_ref(&last));
+    let grid = &read[last.to_str().unwrap()];
+    let field = grid["cell_data"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|a| a["name"] == "subdomain")
+        .expect("a subdomain cell field");
+    let values: Vec<i64> = field["values"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_i64().unwrap())
+        .collect();
+    assert_eq!(values.len() as u64, grid["n_cells"].as_u64().unwrap());
+    assert!(values.iter().all(|&d| d == 0 || d == 1), "{values:?}");
+    assert!(
+        values.contains(&0) && values.contains(&1),
+        "both slabs hold grains"
+    );
+}
