@@ -31,14 +31,15 @@
 //! whole problem, counted in DDM iterations.
 
 use std::ops::Range;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 use nalgebra::{Matrix3, Vector3};
-use rayon::prelude::*;
 
 use super::partition::Decomposition;
 use crate::nscd::body_nlgs::{
-    self, BodyInverses, BodyState, ContactRow, Prepared, SweepStats, Sweepable,
+    self, BodyInverses, BodyState, ContactRow, Prepared, Problem, SweepStats, Sweepable,
 };
 use crate::nscd::coulomb::LocalCoulomb;
 use crate::nscd::nlgs::{NlgsOptions, NlgsReport};
@@ -101,6 +102,13 @@ struct Block {
     moves: Vec<bool>,
     /// The velocities of its bodies.
     state: Vec<BodyState>,
+    /// Its contacts' impulses and slip directions (the block owns them while sweeping).
+    impulse: Vec<[f64; 3]>,
+    directions: Vec<[f64; 2]>,
+    /// NLGS sweeps per DDM iteration (n or m).
+    sweeps: usize,
+    /// The last sweep's statistics.
+    stats: SweepStats,
 }
 
 impl Block {
@@ -108,11 +116,14 @@ impl Block {
     /// numbering) are `prepared`, with their own local solvers or none; its state copied
     /// from `state`. `slot` is scratch of one entry per body, all `usize::MAX` on entry
     /// and on return.
+    #[allow(clippy::too_many_arguments)]
     fn new(
         prepared: &[Prepared],
         locals: Option<Vec<LocalCoulomb>>,
         range: Range<usize>,
         state: &[BodyState],
+        impulse: &[[f64; 3]],
+        sweeps: usize,
         moving: &[bool],
         slot: &mut [usize],
     ) -> Self {
@@ -133,32 +144,35 @@ impl Block {
             slot[b] = usize::MAX;
         }
         Block {
+            impulse: impulse[range.clone()].to_vec(),
+            directions: vec![[0.0; 2]; range.len()],
             range,
             prepared: relabelled,
             locals,
             moves: global.iter().map(|&b| moving[b]).collect(),
             state: global.iter().map(|&b| state[b]).collect(),
             global,
+            sweeps,
+            stats: SweepStats::default(),
         }
     }
 
-    /// `sweeps` NLGS sweeps on the block's own state; the last sweep's statistics.
-    fn sweep(
-        &mut self,
-        contacts: &Sweepable,
-        impulse: &mut [[f64; 3]],
-        directions: &mut [[f64; 2]],
-        sweeps: usize,
-    ) -> SweepStats {
+    /// The block's NLGS sweeps of one DDM iteration on its own state; keeps the last
+    /// sweep's statistics.
+    fn sweep(&mut self, contacts: &Sweepable) {
         let locals = match &self.locals {
             Some(own) => own.as_slice(),
             None => &contacts.locals[self.range.clone()],
         };
-        let mut stats = SweepStats::default();
-        for _ in 0..sweeps {
-            stats = body_nlgs::sweep(&self.prepared, locals, impulse, directions, &mut self.state);
+        for _ in 0..self.sweeps {
+            self.stats = body_nlgs::sweep(
+                &self.prepared,
+                locals,
+                &mut self.impulse,
+                &mut self.directions,
+                &mut self.state,
+            );
         }
-        stats
     }
 
     /// Writes the block's moving bodies into the global state.
@@ -178,17 +192,6 @@ impl Block {
             }
         }
     }
-}
-
-/// Splits `items` into consecutive slices of the given lengths.
-fn split_lengths<'a, T>(mut items: &'a mut [T], lengths: &[usize]) -> Vec<&'a mut [T]> {
-    let mut out = Vec::with_capacity(lengths.len());
-    for &n in lengths {
-        let (head, tail) = items.split_at_mut(n);
-        out.push(head);
-        items = tail;
-    }
-    out
 }
 
 /// How many of the blocks (contact `ranges`) touch each moving body.
@@ -264,141 +267,253 @@ pub fn solve(
         rows.len(),
         "the decomposition numbers every contact"
     );
+    let start = Instant::now();
     let moving: Vec<bool> = inverses.inverse_mass.iter().map(|&m| m > 0.0).collect();
     let asynchronous = ddm.driver == Driver::Asynchronous;
+    let mut problem = Problem::new(rows, inverses, velocity, angular_velocity, impulse);
+    let (contacts, state) = (&problem.contacts, &mut problem.state);
+    // The blocks: the subdomains, and for the asynchronous driver the interface too,
+    // each with its own copy of what it touches.
+    let mut slot = vec![usize::MAX; state.len()];
     let mut ranges = decomposition.subdomains.clone();
-    ranges.push(decomposition.interface.clone());
-    let lengths: Vec<usize> = ranges.iter().map(|r| r.len()).collect();
-    let mut blocks: Option<Vec<Block>> = None;
-    // Asynchronous: how many blocks touch each body, and the sums of their copies.
+    let mut sweeps = vec![ddm.subdomain_sweeps; ranges.len()];
     let mut multiplicity: Vec<u32> = Vec::new();
-    let mut sums: Vec<BodyState> = Vec::new();
+    let blocks: Vec<Mutex<Block>> = if asynchronous {
+        ranges.push(decomposition.interface.clone());
+        sweeps.push(ddm.interface_sweeps);
+        multiplicity = block_multiplicity(rows, &ranges, &moving, state.len());
+        let split = SplitMasses::new(inverses, &multiplicity);
+        ranges
+            .iter()
+            .zip(&sweeps)
+            .map(|(r, &n)| {
+                let prepared: Vec<Prepared> = rows[r.clone()]
+                    .iter()
+                    .map(|row| Prepared::at_state(row, &split.inverses(), state))
+                    .collect();
+                let locals = prepared.iter().map(Prepared::local_solver).collect();
+                let block = Block::new(
+                    &prepared,
+                    Some(locals),
+                    r.clone(),
+                    state,
+                    impulse,
+                    n,
+                    &moving,
+                    &mut slot,
+                );
+                Mutex::new(block)
+            })
+            .collect()
+    } else {
+        ranges
+            .iter()
+            .zip(&sweeps)
+            .map(|(r, &n)| {
+                let prepared = &contacts.prepared[r.clone()];
+                let block = Block::new(
+                    prepared,
+                    None,
+                    r.clone(),
+                    state,
+                    impulse,
+                    n,
+                    &moving,
+                    &mut slot,
+                );
+                Mutex::new(block)
+            })
+            .collect()
+    };
+    let mut sums: Vec<BodyState> = vec![[0.0; 8]; if asynchronous { state.len() } else { 0 }];
+    let team = Team::new(blocks.len());
+    let helpers = rayon::current_num_threads()
+        .min(blocks.len())
+        .saturating_sub(1);
     let (mut subdomain_time, mut interface_time) = (Duration::ZERO, Duration::ZERO);
-    let nlgs = body_nlgs::solve_by(
-        rows,
-        inverses,
-        velocity,
-        angular_velocity,
-        impulse,
-        options,
-        |contacts, impulse, directions, state| {
-            let clock = Instant::now();
-            let blocks = blocks.get_or_insert_with(|| {
-                let mut slot = vec![usize::MAX; state.len()];
-                if asynchronous {
-                    multiplicity = block_multiplicity(rows, &ranges, &moving, state.len());
-                    sums = vec![[0.0; 8]; state.len()];
-                    let split = SplitMasses::new(inverses, &multiplicity);
-                    ranges
-                        .iter()
-                        .map(|r| {
-                            let prepared: Vec<Prepared> = rows[r.clone()]
-                                .iter()
-                                .map(|row| Prepared::at_state(row, &split.inverses(), state))
-                                .collect();
-                            let locals = prepared.iter().map(Prepared::local_solver).collect();
-                            Block::new(
-                                &prepared,
-                                Some(locals),
-                                r.clone(),
-                                state,
-                                &moving,
-                                &mut slot,
-                            )
-                        })
-                        .collect()
-                } else {
-                    decomposition
-                        .subdomains
-                        .iter()
-                        .map(|r| {
-                            let prepared = &contacts.prepared[r.clone()];
-                            Block::new(prepared, None, r.clone(), state, &moving, &mut slot)
-                        })
-                        .collect()
+    let free_norm = problem.free_norm;
+    let mut nlgs = rayon::scope(|scope| {
+        let main = rayon::current_thread_index();
+        for _ in 0..helpers {
+            let (team, blocks) = (&team, &blocks);
+            scope.spawn(move |_| {
+                // Run inline by the main thread while it waits inside a parallel loop
+                // (rayon may do that): nothing to do, the main thread sweeps itself.
+                if rayon::current_thread_index() != main {
+                    team.help(blocks, contacts);
                 }
             });
-            let mut impulses = split_lengths(impulse, &lengths);
-            let mut slips = split_lengths(directions, &lengths);
-            let mut stats = SweepStats::default();
-            if asynchronous {
-                let sweeps = |k: usize| {
-                    if k < decomposition.subdomains.len() {
-                        ddm.subdomain_sweeps
-                    } else {
-                        ddm.interface_sweeps
-                    }
-                };
-                let all: Vec<SweepStats> = blocks
-                    .par_iter_mut()
-                    .zip(impulses)
-                    .zip(slips)
-                    .enumerate()
-                    .map(|(k, ((b, r), d))| b.sweep(contacts, r, d, sweeps(k)))
+        }
+        let report = body_nlgs::run(
+            contacts,
+            state,
+            free_norm,
+            impulse,
+            options,
+            |contacts, impulse, directions, state| {
+                let clock = Instant::now();
+                team.iterate(&blocks, contacts);
+                let mut stats = SweepStats::default();
+                let mut blocks: Vec<_> = blocks
+                    .iter()
+                    .map(|b| b.lock().expect("a block not poisoned"))
                     .collect();
-                all.iter().for_each(|s| stats.add(s));
-                // A body one block touches takes that block's copy; one that k blocks
-                // touch, the mean of the k copies (summed in block order).
                 for b in blocks.iter() {
-                    for ((&g, s), &m) in b.global.iter().zip(&b.state).zip(&b.moves) {
-                        if !m {
-                            continue;
-                        }
-                        if multiplicity[g] == 1 {
-                            state[g] = *s;
-                        } else {
-                            for x in 0..8 {
-                                sums[g][x] += s[x];
+                    stats.add(&b.stats);
+                    impulse[b.range.clone()].copy_from_slice(&b.impulse);
+                }
+                if asynchronous {
+                    // A body one block touches takes that block's copy; one that k
+                    // blocks touch, the mean of the k copies (summed in block order).
+                    for b in blocks.iter() {
+                        for ((&g, s), &m) in b.global.iter().zip(&b.state).zip(&b.moves) {
+                            if !m {
+                                continue;
+                            }
+                            if multiplicity[g] == 1 {
+                                state[g] = *s;
+                            } else {
+                                for x in 0..8 {
+                                    sums[g][x] += s[x];
+                                }
                             }
                         }
                     }
-                }
-                for (g, k) in multiplicity.iter().enumerate() {
-                    if *k > 1 {
-                        let k = f64::from(*k);
-                        for x in 0..8 {
-                            state[g][x] = sums[g][x] / k;
+                    for (g, k) in multiplicity.iter().enumerate() {
+                        if *k > 1 {
+                            let k = f64::from(*k);
+                            for x in 0..8 {
+                                state[g][x] = sums[g][x] / k;
+                            }
+                            sums[g] = [0.0; 8];
                         }
-                        sums[g] = [0.0; 8];
                     }
+                    blocks.iter_mut().for_each(|b| b.refresh(state));
+                    subdomain_time += clock.elapsed();
+                } else {
+                    blocks.iter().for_each(|b| b.write_back(state));
+                    subdomain_time += clock.elapsed();
+                    let clock = Instant::now();
+                    let gamma = decomposition.interface.clone();
+                    let mut last = SweepStats::default();
+                    for _ in 0..ddm.interface_sweeps {
+                        last = body_nlgs::sweep(
+                            &contacts.prepared[gamma.clone()],
+                            &contacts.locals[gamma.clone()],
+                            &mut impulse[gamma.clone()],
+                            &mut directions[gamma.clone()],
+                            state,
+                        );
+                    }
+                    stats.add(&last);
+                    blocks.iter_mut().for_each(|b| b.refresh(state));
+                    interface_time += clock.elapsed();
                 }
-                blocks.iter_mut().for_each(|b| b.refresh(state));
-                subdomain_time += clock.elapsed();
-            } else {
-                let gamma_impulse = impulses.pop().expect("the interface slice");
-                let gamma_slip = slips.pop().expect("the interface slice");
-                let all: Vec<SweepStats> = blocks
-                    .par_iter_mut()
-                    .zip(impulses)
-                    .zip(slips)
-                    .map(|((b, r), d)| b.sweep(contacts, r, d, ddm.subdomain_sweeps))
-                    .collect();
-                all.iter().for_each(|s| stats.add(s));
-                blocks.iter().for_each(|b| b.write_back(state));
-                subdomain_time += clock.elapsed();
-                let clock = Instant::now();
-                let gamma = decomposition.interface.clone();
-                let mut last = SweepStats::default();
-                for _ in 0..ddm.interface_sweeps {
-                    last = body_nlgs::sweep(
-                        &contacts.prepared[gamma.clone()],
-                        &contacts.locals[gamma.clone()],
-                        gamma_impulse,
-                        gamma_slip,
-                        state,
-                    );
-                }
-                stats.add(&last);
-                blocks.iter_mut().for_each(|b| b.refresh(state));
-                interface_time += clock.elapsed();
-            }
-            stats
-        },
-    );
+                stats
+            },
+        );
+        team.stop();
+        report
+    });
+    problem.finish(velocity, angular_velocity);
+    nlgs.solve_time = start.elapsed();
     DdmReport {
         nlgs,
         subdomain_time,
         interface_time,
+    }
+}
+
+/// The threads that sweep the blocks of one solve: the main thread (which runs the
+/// NLGS loop) and helpers that live for the whole solve and spin between iterations
+/// (a rayon loop per iteration put the idle worker to sleep and paid a wake-up each
+/// time, beside about 0.3 ms of work). Blocks are claimed from a counter, so the main
+/// thread sweeps every block no helper has taken: a helper that never starts (all
+/// workers busy) costs time, never progress.
+struct Team {
+    /// Incremented by the main thread to start an iteration.
+    epoch: AtomicUsize,
+    /// The next block to claim in this iteration.
+    next: AtomicUsize,
+    /// Blocks swept in this iteration.
+    completed: AtomicUsize,
+    /// Set when the solve is over.
+    stopped: AtomicBool,
+    blocks: usize,
+}
+
+impl Team {
+    fn new(blocks: usize) -> Self {
+        Team {
+            epoch: AtomicUsize::new(0),
+            next: AtomicUsize::new(blocks),
+            completed: AtomicUsize::new(0),
+            stopped: AtomicBool::new(false),
+            blocks,
+        }
+    }
+
+    /// Claims and sweeps blocks until none is left.
+    fn claim(&self, blocks: &[Mutex<Block>], contacts: &Sweepable) {
+        loop {
+            let k = self.next.fetch_add(1, Ordering::AcqRel);
+            if k >= self.blocks {
+                return;
+            }
+            blocks[k]
+                .lock()
+                .expect("a block not poisoned")
+                .sweep(contacts);
+            self.completed.fetch_add(1, Ordering::AcqRel);
+        }
+    }
+
+    /// The main thread: one iteration's block sweeps, with whoever helps.
+    fn iterate(&self, blocks: &[Mutex<Block>], contacts: &Sweepable) {
+        self.completed.store(0, Ordering::Release);
+        self.next.store(0, Ordering::Release);
+        self.epoch.fetch_add(1, Ordering::AcqRel);
+        self.claim(blocks, contacts);
+        let mut spins = 0u32;
+        while self.completed.load(Ordering::Acquire) < self.blocks {
+            backoff(&mut spins);
+        }
+    }
+
+    /// A helper: sweeps blocks at each new iteration until the solve stops.
+    fn help(&self, blocks: &[Mutex<Block>], contacts: &Sweepable) {
+        let mut seen = self.epoch.load(Ordering::Acquire);
+        let mut spins = 0u32;
+        loop {
+            let epoch = self.epoch.load(Ordering::Acquire);
+            if epoch != seen {
+                seen = epoch;
+                self.claim(blocks, contacts);
+                spins = 0;
+            } else if self.stopped.load(Ordering::Acquire) {
+                return;
+            } else if spins >= 64 && rayon::yield_now() == Some(rayon::Yield::Executed) {
+                // Between iterations (the interface sweeps, the error measure) a
+                // helper takes the main thread's parallel chunks of the measure.
+                spins = 0;
+            } else {
+                backoff(&mut spins);
+            }
+        }
+    }
+
+    fn stop(&self) {
+        self.stopped.store(true, Ordering::Release);
+    }
+}
+
+/// Spins a while, then yields the core (when more threads than cores wait).
+fn backoff(spins: &mut u32) {
+    if *spins < 1 << 14 {
+        *spins += 1;
+        std::hint::spin_loop();
+    } else {
+        std::thread::yield_now();
     }
 }
 

@@ -356,9 +356,9 @@ pub(crate) fn sweep(
 
 /// [`solve`] with the iteration given by the caller: `iteration(contacts, impulse,
 /// directions, state)` makes one iteration (one sweep for plain NLGS, one DDM
-/// iteration for [`crate::ddm`]) over all contacts and returns its statistics. This
-/// function owns the set-up (sweep data, free velocities, warm start), the stopping
-/// test and the error measure, so every driver stops on the same criterion.
+/// iteration for [`crate::ddm`]) over all contacts and returns its statistics. The
+/// set-up ([`Problem::new`]), the stopping test and the error measure
+/// ([`Problem::run`]) are shared, so every driver stops on the same criterion.
 pub fn solve_by<F>(
     rows: &[ContactRow],
     inverses: &BodyInverses,
@@ -366,43 +366,129 @@ pub fn solve_by<F>(
     angular_velocity: &mut [Vector3<f64>],
     impulse: &mut [[f64; 3]],
     options: &NlgsOptions,
-    mut iteration: F,
+    iteration: F,
 ) -> NlgsReport
 where
     F: FnMut(&Sweepable, &mut [[f64; 3]], &mut [[f64; 2]], &mut [BodyState]) -> SweepStats,
 {
     let start = Instant::now();
-    assert_eq!(rows.len(), impulse.len(), "one impulse per contact");
-    // The bodies' velocities [v, ω], one record per body, for the sweeps.
-    let mut state: Vec<BodyState> = velocity
-        .iter()
-        .zip(angular_velocity.iter())
-        .map(|(v, w)| [v.x, v.y, v.z, 0.0, w.x, w.y, w.z, 0.0])
-        .collect();
-    let prepared: Vec<Prepared> = rows
-        .iter()
-        .map(|r| Prepared::at_state(r, inverses, &state))
-        .collect();
-    // The local solvers (W_aa, its inverse, µ): read only by contacts that reach them.
-    let locals: Vec<LocalCoulomb> = prepared.iter().map(Prepared::local_solver).collect();
-    let contacts = Sweepable { prepared, locals };
-    let prepared = &contacts.prepared;
-    let free_norm = prepared
-        .iter()
-        .flat_map(|c| c.velocity(&state))
-        .map(|x| x * x)
-        .sum::<f64>()
-        .sqrt();
-    for (c, r) in prepared.iter().zip(impulse.iter()) {
-        if *r != [0.0; 3] {
-            c.apply(*r, &mut state);
+    let mut problem = Problem::new(rows, inverses, velocity, angular_velocity, impulse);
+    let mut report = problem.run(impulse, options, iteration);
+    problem.finish(velocity, angular_velocity);
+    report.solve_time = start.elapsed();
+    report
+}
+
+/// A body-velocity contact problem set up for sweeping: the contacts' sweep data, the
+/// bodies' velocities (free velocities plus the warm start's `M⁻¹ H r`) and the norm
+/// of the local free velocities (the error measure's scale).
+pub struct Problem {
+    /// The contacts.
+    pub contacts: Sweepable,
+    /// The bodies' velocities `[v, 0, ω, 0]`.
+    pub state: Vec<BodyState>,
+    /// The norm of the local free velocities (the error measure's scale).
+    pub free_norm: f64,
+}
+
+impl Problem {
+    /// Sets up the problem of `rows` from the free velocities and the warm-start
+    /// `impulse` (applied to the velocities here).
+    pub fn new(
+        rows: &[ContactRow],
+        inverses: &BodyInverses,
+        velocity: &[Vector3<f64>],
+        angular_velocity: &[Vector3<f64>],
+        impulse: &[[f64; 3]],
+    ) -> Self {
+        assert_eq!(rows.len(), impulse.len(), "one impulse per contact");
+        // The bodies' velocities [v, ω], one record per body, for the sweeps.
+        let mut state: Vec<BodyState> = velocity
+            .iter()
+            .zip(angular_velocity.iter())
+            .map(|(v, w)| [v.x, v.y, v.z, 0.0, w.x, w.y, w.z, 0.0])
+            .collect();
+        // In parallel, collected in order.
+        let prepared: Vec<Prepared> = rows
+            .par_iter()
+            .map(|r| Prepared::at_state(r, inverses, &state))
+            .collect();
+        // The local solvers (W_aa, its inverse, µ): read only by contacts that reach
+        // them.
+        let locals: Vec<LocalCoulomb> = prepared.par_iter().map(Prepared::local_solver).collect();
+        let free_norm = prepared
+            .iter()
+            .flat_map(|c| c.velocity(&state))
+            .map(|x| x * x)
+            .sum::<f64>()
+            .sqrt();
+        for (c, r) in prepared.iter().zip(impulse.iter()) {
+            if *r != [0.0; 3] {
+                c.apply(*r, &mut state);
+            }
+        }
+        Problem {
+            contacts: Sweepable { prepared, locals },
+            state,
+            free_norm,
         }
     }
-    let mut directions = vec![[0.0f64; 2]; rows.len()];
+
+    /// Iterates until the stopping rule of `options` (see [`solve`]); `impulse` is the
+    /// warm start given to [`Problem::new`] and holds the result. The report's
+    /// `solve_time` is left at zero.
+    pub fn run<F>(
+        &mut self,
+        impulse: &mut [[f64; 3]],
+        options: &NlgsOptions,
+        iteration: F,
+    ) -> NlgsReport
+    where
+        F: FnMut(&Sweepable, &mut [[f64; 3]], &mut [[f64; 2]], &mut [BodyState]) -> SweepStats,
+    {
+        run(
+            &self.contacts,
+            &mut self.state,
+            self.free_norm,
+            impulse,
+            options,
+            iteration,
+        )
+    }
+
+    /// Writes the velocities back.
+    pub fn finish(&self, velocity: &mut [Vector3<f64>], angular_velocity: &mut [Vector3<f64>]) {
+        for ((v, w), s) in velocity
+            .iter_mut()
+            .zip(angular_velocity.iter_mut())
+            .zip(&self.state)
+        {
+            *v = Vector3::new(s[0], s[1], s[2]);
+            *w = Vector3::new(s[4], s[5], s[6]);
+        }
+    }
+}
+
+/// [`Problem::run`] on the parts of a problem (so that other threads may borrow the
+/// contacts while this one owns the state).
+pub fn run<F>(
+    contacts: &Sweepable,
+    state: &mut [BodyState],
+    free_norm: f64,
+    impulse: &mut [[f64; 3]],
+    options: &NlgsOptions,
+    mut iteration: F,
+) -> NlgsReport
+where
+    F: FnMut(&Sweepable, &mut [[f64; 3]], &mut [[f64; 2]], &mut [BodyState]) -> SweepStats,
+{
+    let prepared = &contacts.prepared;
+    let rows_len = prepared.len();
+    let mut directions = vec![[0.0f64; 2]; rows_len];
     let mut report = NlgsReport {
         iterations: 0,
         error: 0.0,
-        converged: rows.is_empty(),
+        converged: rows_len == 0,
         solve_time: Duration::ZERO,
         error_evaluations: 0,
         local_fallbacks: 0,
@@ -415,7 +501,7 @@ where
         } => (tolerance, max_sweeps),
         Stopping::Sweeps(n) => (f64::NEG_INFINITY, n),
     };
-    if !rows.is_empty() {
+    if rows_len > 0 {
         // In parallel over fixed chunks of contacts, the partial sums added in chunk
         // order: the same value on any number of threads.
         let measure = |impulse: &[[f64; 3]], state: &[BodyState]| {
@@ -455,7 +541,7 @@ where
         };
         report.error = f64::INFINITY;
         while report.iterations < max_sweeps {
-            let stats = iteration(&contacts, impulse, &mut directions, &mut state);
+            let stats = iteration(contacts, impulse, &mut directions, state);
             report.local_fallbacks += stats.fallbacks;
             report.iterations += 1;
             let full =
@@ -463,7 +549,7 @@ where
                     .error_check
                     .due(report.iterations, stats.change, stats.size, tolerance);
             if full {
-                report.error = measure(impulse, &state);
+                report.error = measure(impulse, state);
                 report.error_evaluations += 1;
                 if report.error <= tolerance {
                     report.converged = true;
@@ -472,21 +558,12 @@ where
             }
         }
         if !report.converged {
-            report.error = measure(impulse, &state);
+            report.error = measure(impulse, state);
             report.error_evaluations += 1;
             report.converged = report.error <= tolerance || tolerance == f64::NEG_INFINITY;
         }
     }
-    for ((v, w), s) in velocity
-        .iter_mut()
-        .zip(angular_velocity.iter_mut())
-        .zip(&state)
-    {
-        *v = Vector3::new(s[0], s[1], s[2]);
-        *w = Vector3::new(s[4], s[5], s[6]);
-    }
     report.returned_sweep = report.iterations;
-    report.solve_time = start.elapsed();
     report
 }
 
