@@ -6,7 +6,8 @@
 #   make test     set up, check formatting and lints, run every test
 #   make meshes   mesh every geo/*.geo and the stone family
 #   make paper    the QDEM scenes at the paper's resolution and the convergence table
-#   make bench    QDEM throughput at paper resolution on 1 and 2 threads
+#   make bench    QDEM throughput at paper resolution, NSCD throughput and the DDM
+#                 efficiency (quick bed), each on 1 and 2 threads
 #   make clean    remove build outputs, meshes and results (keeps the venv)
 #
 # Every step has real file dependencies: a second `make` does nothing. The default
