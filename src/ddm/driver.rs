@@ -360,7 +360,6 @@ pub fn solve(
                     .collect();
                 for b in blocks.iter() {
                     stats.add(&b.stats);
-                    impulse[b.range.clone()].copy_from_slice(&b.impulse);
                 }
                 if asynchronous {
                     // A body one block touches takes that block's copy; one that k
@@ -410,6 +409,13 @@ pub fn solve(
                     interface_time += clock.elapsed();
                 }
                 stats
+            },
+            |impulse| {
+                // The blocks' impulses, only when the measure or the caller reads them.
+                for b in &blocks {
+                    let b = b.lock().expect("a block not poisoned");
+                    impulse[b.range.clone()].copy_from_slice(&b.impulse);
+                }
             },
         );
         team.stop();

@@ -373,7 +373,20 @@ where
 {
     let start = Instant::now();
     let mut problem = Problem::new(rows, inverses, velocity, angular_velocity, impulse);
-    let mut report = problem.run(impulse, options, iteration);
+    let Problem {
+        contacts,
+        state,
+        free_norm,
+    } = &mut problem;
+    let mut report = run(
+        contacts,
+        state,
+        *free_norm,
+        impulse,
+        options,
+        iteration,
+        |_| {},
+    );
     problem.finish(velocity, angular_velocity);
     report.solve_time = start.elapsed();
     report
@@ -434,28 +447,6 @@ impl Problem {
         }
     }
 
-    /// Iterates until the stopping rule of `options` (see [`solve`]); `impulse` is the
-    /// warm start given to [`Problem::new`] and holds the result. The report's
-    /// `solve_time` is left at zero.
-    pub fn run<F>(
-        &mut self,
-        impulse: &mut [[f64; 3]],
-        options: &NlgsOptions,
-        iteration: F,
-    ) -> NlgsReport
-    where
-        F: FnMut(&Sweepable, &mut [[f64; 3]], &mut [[f64; 2]], &mut [BodyState]) -> SweepStats,
-    {
-        run(
-            &self.contacts,
-            &mut self.state,
-            self.free_norm,
-            impulse,
-            options,
-            iteration,
-        )
-    }
-
     /// Writes the velocities back.
     pub fn finish(&self, velocity: &mut [Vector3<f64>], angular_velocity: &mut [Vector3<f64>]) {
         for ((v, w), s) in velocity
@@ -469,18 +460,24 @@ impl Problem {
     }
 }
 
-/// [`Problem::run`] on the parts of a problem (so that other threads may borrow the
-/// contacts while this one owns the state).
-pub fn run<F>(
+/// Iterates on a [`Problem`]'s parts (so that other threads may borrow the contacts
+/// while this one owns the state) until the stopping rule of `options` (see
+/// [`solve`]): `iteration` makes one iteration and returns its statistics; `gather`
+/// makes `impulse` current, for a driver whose blocks keep their own impulses (called
+/// before every error measure and once at the end). `impulse` is the warm start given
+/// to [`Problem::new`] and holds the result. The report's `solve_time` is left at zero.
+pub fn run<F, G>(
     contacts: &Sweepable,
     state: &mut [BodyState],
     free_norm: f64,
     impulse: &mut [[f64; 3]],
     options: &NlgsOptions,
     mut iteration: F,
+    mut gather: G,
 ) -> NlgsReport
 where
     F: FnMut(&Sweepable, &mut [[f64; 3]], &mut [[f64; 2]], &mut [BodyState]) -> SweepStats,
+    G: FnMut(&mut [[f64; 3]]),
 {
     let prepared = &contacts.prepared;
     let rows_len = prepared.len();
@@ -549,6 +546,7 @@ where
                     .error_check
                     .due(report.iterations, stats.change, stats.size, tolerance);
             if full {
+                gather(impulse);
                 report.error = measure(impulse, state);
                 report.error_evaluations += 1;
                 if report.error <= tolerance {
@@ -557,6 +555,7 @@ where
                 }
             }
         }
+        gather(impulse);
         if !report.converged {
             report.error = measure(impulse, state);
             report.error_evaluations += 1;
