@@ -2,21 +2,20 @@
 //! the exact local 3-D Coulomb solver and the non-linear Gauss–Seidel (NSGS) sweep.
 //!
 //! Like Siconos's *numerics*, this module knows nothing of files, scenes or meshes:
-//! [`problem::FrictionProblem`] is filled by the NSCD step (later) or by the FC3D readers
+//! [`problem::FrictionProblem`] (W form) is filled by the FC3D readers
 //! ([`crate::fc3d`]); [`nlgs::solve`] takes it with [`nlgs::NlgsOptions`] and returns an
 //! [`nlgs::NlgsReport`].
 //!
 //! # Two forms, one local solver
 //! - **W form** (built): `u = W r + q`, W as block-sparse rows of 3 × 3 blocks. A sweep
 //!   forms `q_a + Σ_b W_ab r_b` per contact. This is what the FC3D files give.
-//! - **Body-velocity form** (planned for the NSCD engine): `u_a = H_aᵀ v + w_a`, with
-//!   `M v = H r + f` kept up to date: after contact a's local solve, the two bodies'
+//! - **Body-velocity form** (the NSCD engine's, [`body_nlgs`]): `u_a = H_aᵀ v + w_a`,
+//!   with `M v = H r + f` kept up to date: after contact a's local solve, the two bodies'
 //!   velocities get `M⁻¹ H_a Δr_a` in place, so a sweep costs O(contacts) without ever
 //!   assembling W. It needs only the diagonal blocks `W_aa = H_aᵀ M⁻¹ H_a` for the local
-//!   solver. It will be a second sweep beside [`nlgs::solve`] that calls the same
-//!   [`coulomb::LocalCoulomb::solve`] with the local free velocity
-//!   `H_aᵀ v + w_a − W_aa r_a`, and takes and returns the same options and report
-//!   structs; the error measure is the same one on `u = Hᵀ v + w`.
+//!   solver, calls the same [`coulomb::LocalCoulomb::solve`], takes and returns the same
+//!   options and report structs, and measures the error the same way on `u = Hᵀ v + w`.
+//!   The domain decomposition ([`crate::ddm`]) runs its sweeps by subdomain.
 //!
 //! # Stopping
 //! [`nlgs::Stopping::Tolerance`] stops when the Siconos error measure
