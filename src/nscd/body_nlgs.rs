@@ -358,7 +358,7 @@ pub(crate) fn sweep(
 /// directions, state)` makes one iteration (one sweep for plain NLGS, one DDM
 /// iteration for [`crate::ddm`]) over all contacts and returns its statistics. The
 /// set-up ([`Problem::new`]), the stopping test and the error measure
-/// ([`Problem::run`]) are shared, so every driver stops on the same criterion.
+/// ([`run`]) are shared, so every driver stops on the same criterion.
 pub fn solve_by<F>(
     rows: &[ContactRow],
     inverses: &BodyInverses,

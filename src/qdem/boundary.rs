@@ -94,7 +94,7 @@ pub enum TimeFunction {
         /// Switch-off time (s).
         t0: f64,
     },
-    /// Piecewise linear through (times[i], values[i]), constant beyond the ends.
+    /// Piecewise linear through (`times[i]`, `values[i]`), constant beyond the ends.
     Table {
         /// Strictly increasing times (s).
         times: Vec<f64>,

@@ -3,7 +3,7 @@
 //! slices; scenes, meshes files and output live elsewhere).
 //!
 //! Map of the paper onto the code:
-//! - eq. 1 (F = dx dX⁻¹ from the four vertices): [`element`], `element_stress`,
+//! - eq. 1 (F = dx dX⁻¹ from the four vertices): `element`, `element_stress`,
 //!   F = D_s D_m⁻¹ with D_m⁻¹ precomputed per tetra in [`QdemModel`];
 //! - eq. 2–4 (T_E = λ tr ε I + 2µ ε, ε = (B − I)/2, B = F Fᵀ): same function;
 //! - eq. 5–7 (L = dv dx⁻¹, D = sym L, T_D = λ_D tr D I + 2µ_D D): same function, with
