@@ -113,13 +113,11 @@ struct Block {
 
 impl Block {
     /// The block of contacts `range`, whose sweep data (bodies in the global
-    /// numbering) are `prepared`, with their own local solvers or none; its state copied
-    /// from `state`. `slot` is scratch of one entry per body, all `usize::MAX` on entry
-    /// and on return.
-    #[allow(clippy::too_many_arguments)]
+    /// numbering) and own local solvers (or none: the problem's) are `data`; its state
+    /// copied from `state`, its impulses from `impulse`. `slot` is scratch of one entry
+    /// per body, all `usize::MAX` on entry and on return.
     fn new(
-        prepared: &[Prepared],
-        locals: Option<Vec<LocalCoulomb>>,
+        (prepared, locals): (&[Prepared], Option<Vec<LocalCoulomb>>),
         range: Range<usize>,
         state: &[BodyState],
         impulse: &[[f64; 3]],
@@ -278,53 +276,35 @@ pub fn solve(
     let mut ranges = decomposition.subdomains.clone();
     let mut sweeps = vec![ddm.subdomain_sweeps; ranges.len()];
     let mut multiplicity: Vec<u32> = Vec::new();
-    let blocks: Vec<Mutex<Block>> = if asynchronous {
+    // Asynchronous: the interface is one more block, and shared grains' masses split.
+    let split = asynchronous.then(|| {
         ranges.push(decomposition.interface.clone());
         sweeps.push(ddm.interface_sweeps);
         multiplicity = block_multiplicity(rows, &ranges, &moving, state.len());
-        let split = SplitMasses::new(inverses, &multiplicity);
-        ranges
-            .iter()
-            .zip(&sweeps)
-            .map(|(r, &n)| {
-                let prepared: Vec<Prepared> = rows[r.clone()]
-                    .iter()
-                    .map(|row| Prepared::at_state(row, &split.inverses(), state))
-                    .collect();
-                let locals = prepared.iter().map(Prepared::local_solver).collect();
-                let block = Block::new(
-                    &prepared,
-                    Some(locals),
-                    r.clone(),
-                    state,
-                    impulse,
-                    n,
-                    &moving,
-                    &mut slot,
-                );
-                Mutex::new(block)
-            })
-            .collect()
-    } else {
-        ranges
-            .iter()
-            .zip(&sweeps)
-            .map(|(r, &n)| {
-                let prepared = &contacts.prepared[r.clone()];
-                let block = Block::new(
-                    prepared,
-                    None,
-                    r.clone(),
-                    state,
-                    impulse,
-                    n,
-                    &moving,
-                    &mut slot,
-                );
-                Mutex::new(block)
-            })
-            .collect()
-    };
+        SplitMasses::new(inverses, &multiplicity)
+    });
+    let blocks: Vec<Mutex<Block>> = ranges
+        .iter()
+        .zip(&sweeps)
+        .map(|(r, &n)| {
+            let block = match &split {
+                Some(split) => {
+                    let prepared: Vec<Prepared> = rows[r.clone()]
+                        .iter()
+                        .map(|row| Prepared::at_state(row, &split.inverses(), state))
+                        .collect();
+                    let locals = prepared.iter().map(Prepared::local_solver).collect();
+                    let own = (&prepared[..], Some(locals));
+                    Block::new(own, r.clone(), state, impulse, n, &moving, &mut slot)
+                }
+                None => {
+                    let shared = (&contacts.prepared[r.clone()], None);
+                    Block::new(shared, r.clone(), state, impulse, n, &moving, &mut slot)
+                }
+            };
+            Mutex::new(block)
+        })
+        .collect();
     let mut sums: Vec<BodyState> = vec![[0.0; 8]; if asynchronous { state.len() } else { 0 }];
     let team = Team::new(blocks.len());
     let helpers = rayon::current_num_threads()
