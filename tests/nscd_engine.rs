@@ -20,15 +20,23 @@ fn root() -> PathBuf {
 
 /// Runs a scene's quick preset into `out` and returns its figures.
 fn run_quick(scene: &str, out: &Path) -> Value {
+    run_quick_with(scene, &[], out)
+}
+
+/// Runs a scene's quick preset with extra arguments (`--set`, `--threads`) into `out`
+/// and returns its figures.
+fn run_quick_with(scene: &str, args: &[&str], out: &Path) -> Value {
     let output = Command::new(NSCD)
         .arg(root().join("scenes").join(scene))
-        .args(["--preset", "quick", "--out"])
+        .args(["--preset", "quick"])
+        .args(args)
+        .arg("--out")
         .arg(out)
         .output()
         .expect("ballast-nscd runs");
     assert!(
         output.status.success(),
-        "{scene}: {}",
+        "{scene} {args:?}: {}",
         String::from_utf8_lossy(&output.stderr)
     );
     let text = std::fs::read_to_string(out.join("summary.json")).unwrap();
@@ -246,26 +254,16 @@ fn driven_box_and_tine_push_blocks_at_their_speed_against_floor_friction() {
 
 /// Runs drop_box's quick preset with `[ddm]` set by `--set` on `threads` threads.
 fn run_drop_box_ddm(driver: &str, threads: usize, out: &Path) -> Value {
-    let output = Command::new(NSCD)
-        .arg(root().join("scenes/drop_box.toml"))
-        .args(["--preset", "quick", "--threads", &threads.to_string()])
-        .args([
-            "--set",
-            &format!("ddm.driver=\"{driver}\""),
-            "--set",
-            "ddm.slabs=2",
-        ])
-        .arg("--out")
-        .arg(out)
-        .output()
-        .expect("ballast-nscd runs");
-    assert!(
-        output.status.success(),
-        "{driver}: {}",
-        String::from_utf8_lossy(&output.stderr)
-    );
-    let text = std::fs::read_to_string(out.join("summary.json")).unwrap();
-    serde_json::from_str::<Value>(&text).unwrap()["figures"].clone()
+    let (driver, threads) = (format!("ddm.driver=\"{driver}\""), threads.to_string());
+    let args = [
+        "--threads",
+        &threads,
+        "--set",
+        &driver,
+        "--set",
+        "ddm.slabs=2",
+    ];
+    run_quick_with("drop_box.toml", &args, out)
 }
 
 #[test]
