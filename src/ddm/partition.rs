@@ -110,7 +110,6 @@ pub fn block_of(owner: &[Option<u32>], a: usize, b: usize, subdomains: usize) ->
     match (owner[a], owner[b]) {
         (Some(x), Some(y)) if x == y => x as usize,
         (Some(x), None) | (None, Some(x)) => x as usize,
-        (None, None) => subdomains,
         _ => subdomains,
     }
 }

@@ -196,8 +196,6 @@ pub struct Deposition {
     pub phase_times: [Duration; 4],
     /// Of the solve, with a DDM: the parallel subdomain part, the sequential interface.
     pub solve_split: [Duration; 2],
-    /// Σ over steps of the contacts, and of those on the DDM interface.
-    pub contact_steps: [u64; 2],
     /// Wall time stepping.
     pub stepping: Duration,
     /// Phases done.
@@ -252,7 +250,6 @@ impl Deposition {
             body_steps: 0,
             phase_times: [Duration::ZERO; 4],
             solve_split: [Duration::ZERO; 2],
-            contact_steps: [0; 2],
             stepping: Duration::ZERO,
             phases: Vec::new(),
             engine,
@@ -337,8 +334,6 @@ impl Deposition {
         for (total, t) in self.solve_split.iter_mut().zip(report.solve_split) {
             *total += t;
         }
-        self.contact_steps[0] += report.contacts as u64;
-        self.contact_steps[1] += report.interface_contacts as u64;
         self.steps += 1;
         self.time = self.steps as f64 * self.setup.params.dt;
         self.body_steps += self.bodies.iter().filter(|b| b.is_dynamic()).count() as u64;
