@@ -209,6 +209,15 @@ pub enum Motion {
     Static,
 }
 
+/// `ωᵀ I ω` about principal axes, skipping the axes of infinite inertia (held, so
+/// ω = 0 about them; ∞ · 0 would be NaN).
+pub fn rotational_energy(inertia: &Vector3<f64>, w: &Vector3<f64>) -> f64 {
+    (0..3)
+        .filter(|&k| inertia[k].is_finite())
+        .map(|k| inertia[k] * w[k] * w[k])
+        .sum()
+}
+
 /// One rigid body and its state.
 #[derive(Debug, Clone)]
 pub struct Body {
@@ -281,6 +290,20 @@ impl Body {
         }
     }
 
+    /// `self` without yaw: infinite inertia about the principal axis nearest the world
+    /// vertical, so contacts can tilt it but not turn it in plan. A sleeper is held
+    /// square to the track by its rails and fastenings; left free, a lowered sleeper
+    /// turns on the stones it first lands on (11° on the quick bed).
+    pub fn without_yaw(mut self) -> Body {
+        let up = self.orientation.inverse() * Vector3::z();
+        let axis = (0..3)
+            .max_by(|&a, &b| up[a].abs().total_cmp(&up[b].abs()))
+            .expect("three axes");
+        self.inertia[axis] = f64::INFINITY;
+        self.angular_velocity[axis] = 0.0;
+        self
+    }
+
     /// Whether the dynamics moves it.
     pub fn is_dynamic(&self) -> bool {
         self.motion == Motion::Dynamic
@@ -320,12 +343,8 @@ impl Body {
         if !self.is_dynamic() {
             return 0.0;
         }
-        let w = &self.angular_velocity;
         0.5 * self.mass * self.velocity.norm_squared()
-            + 0.5
-                * (self.inertia.x * w.x * w.x
-                    + self.inertia.y * w.y * w.y
-                    + self.inertia.z * w.z * w.z)
+            + 0.5 * rotational_energy(&self.inertia, &self.angular_velocity)
     }
 
     /// The hull vertices in world coordinates.

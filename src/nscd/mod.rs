@@ -34,6 +34,7 @@ pub mod residual;
 pub mod run;
 pub mod scene;
 pub mod step;
+pub mod tamping;
 
 pub use body::{Body, BodyShape, Motion, Prescribed};
 pub use coulomb::{ContactStatus, LocalCoulomb};

@@ -1,6 +1,7 @@
 //! The bodies of a `ballast-pack` packing file ([`Packing`]), for a `[packing]` table
 //! of an NSCD scene: every stone as the convex hull of its mesh placed as the file says,
-//! the sleepers (cuboids or mesh hulls) as dynamic bodies, and the container's floor and
+//! the sleepers (cuboids or mesh hulls) as dynamic bodies that do not yaw (held
+//! square to the track by their rails, [`Body::without_yaw`]), and the container's floor and
 //! side walls as half-spaces.
 //!
 //! A placement maps the (scaled) mesh coordinates to the world; a body's state is in
@@ -100,13 +101,16 @@ pub fn packed_bodies(
                 }
                 _ => unreachable!("Packing::read checks one of mesh or size"),
             };
-            bodies.push(Body::dynamic(
-                &format!("sleeper_{}", k + 1),
-                Arc::new(shape),
-                stuff.density,
-                stuff.material,
-                s.pose() * frame,
-            ));
+            bodies.push(
+                Body::dynamic(
+                    &format!("sleeper_{}", k + 1),
+                    Arc::new(shape),
+                    stuff.density,
+                    stuff.material,
+                    s.pose() * frame,
+                )
+                .without_yaw(),
+            );
         }
     }
     let mut shapes: Vec<Option<StoneShape>> = vec![None; packing.meshes.len()];
@@ -139,6 +143,6 @@ pub fn packed_bodies(
 }
 
 /// An error's text without the file prefix it may already carry twice (kept short).
-fn one_line(e: &Error) -> String {
+pub(crate) fn one_line(e: &Error) -> String {
     e.to_string().lines().next().unwrap_or_default().to_string()
 }

@@ -40,10 +40,21 @@ pub fn run(ctx: &RunContext) -> Result<()> {
         friction,
         stone_diameters,
         driven,
+        tamping,
     } = timer.time("build bodies", || scene.build(&ctx.scene_path))?;
     std::fs::create_dir_all(ctx.out_dir.join("frames")).map_err(|e| Error::io(&ctx.out_dir, e))?;
     let dt = scene.time.dt.si();
     let steps = (scene.time.duration.si() / dt).round().max(1.0) as u64;
+    if let Some(plan) = &tamping {
+        if steps as f64 * dt < plan.end() - 0.5 * dt {
+            println!(
+                "ballast-nscd: note: the run stops at {:.4} s, before the tamping cycles end \
+                 ({:.4} s); compactness_after is the compactness then",
+                steps as f64 * dt,
+                plan.end()
+            );
+        }
+    }
     let params = StepParams {
         dt,
         theta: scene.time.theta,
@@ -125,6 +136,18 @@ pub fn run(ctx: &RunContext) -> Result<()> {
         Vec::new()
     };
     let driven_start: Vec<Vector3<f64>> = bodies.iter().map(|b| b.position).collect();
+    let mut tamping = match tamping {
+        Some(plan) => {
+            let monitor = timer.time("tamping: compactness", || {
+                super::tamping::TampingMonitor::new(plan, &bodies)
+            });
+            let columns = monitor.columns();
+            let names: Vec<&str> = columns.iter().map(String::as_str).collect();
+            let csv = CsvSeries::create(ctx.out_dir.join("tamping.csv"), &names)?;
+            Some((monitor, csv))
+        }
+        None => None,
+    };
 
     let mut stats = RunStats::default();
     let bar = ProgressBar::with_draw_target(Some(steps), ProgressDrawTarget::stderr_with_hz(4));
@@ -136,6 +159,9 @@ pub fn run(ctx: &RunContext) -> Result<()> {
     let mut frames_s = 0.0;
     let mut time = 0.0;
     for step in 1..=steps {
+        if let Some((monitor, _)) = &mut tamping {
+            monitor.actuate(time, dt, &mut bodies);
+        }
         let report = pipeline.step(&mut bodies, time, &friction);
         time = step as f64 * dt;
         for (k, name) in ["detect", "build", "solve", "update"].iter().enumerate() {
@@ -168,6 +194,13 @@ pub fn run(ctx: &RunContext) -> Result<()> {
                     (a == s || b == s).then(|| friction.get(bodies[a].material, bodies[b].material))
                 });
             }
+        }
+        if let Some((monitor, csv)) = &mut tamping {
+            let clock = Instant::now();
+            let sample = step % monitor.plan.sample_every == 0 || step == steps;
+            let row = monitor.record(time, sample, &bodies, pipeline.contacts(), dt);
+            csv.push(&row)?;
+            timer.add("tamping: compactness", clock.elapsed());
         }
         for push in &mut pushes {
             push.record(
@@ -278,7 +311,15 @@ pub fn run(ctx: &RunContext) -> Result<()> {
     // velocity (exact for θ = 0.5 and a piecewise-linear velocity with its breakpoints
     // on step boundaries; O(h²) per unit time otherwise).
     let mut driven_error: Option<f64> = None;
+    // The tines' squeeze follows the ballast's push (TampingMonitor::actuate): not
+    // prescribed in advance, so not checked here.
+    let actuated: Vec<usize> = tamping.as_ref().map_or(Vec::new(), |(m, _)| {
+        m.plan.tines.iter().flat_map(|t| t.pieces.clone()).collect()
+    });
     for (k, body) in bodies.iter().enumerate() {
+        if actuated.contains(&k) {
+            continue;
+        }
         if let Motion::Driven(prescribed) = &body.motion {
             let expected = driven_start[k] + prescribed.displacement(0.0, time);
             let error = (body.position - expected).norm();
@@ -311,6 +352,9 @@ pub fn run(ctx: &RunContext) -> Result<()> {
         summary = summary
             .figure("push_max_impulse_relative_error", worst_impulse)
             .figure("push_max_velocity_relative_error", worst_velocity);
+    }
+    if let Some((monitor, _)) = &tamping {
+        summary = monitor.figures(summary);
     }
     let summary = summary.wall_times(&timer);
     write_json(ctx.out_dir.join("summary.json"), &summary.to_json())?;

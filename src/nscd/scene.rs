@@ -71,6 +71,10 @@
 //! stone_material = "granite"
 //! sleeper_material = "concrete"     # optional: the sleepers as dynamic bodies
 //! wall_material = "steel"           # optional: the container's floor and side walls
+//!
+//! [tamping]                         # optional, on a packing: super::tamping
+//! tine_mesh = "../meshes/tine.msh"
+//! tine_material = "steel"
 //! ```
 
 use std::path::{Path, PathBuf};
@@ -128,6 +132,9 @@ pub struct NscdScene {
     /// Stones, sleepers and container from a `ballast-pack` packing file.
     #[serde(default)]
     pub packing: Option<PackingSpec>,
+    /// A tamping cycle on one of the packing's sleepers ([`super::tamping`]).
+    #[serde(default)]
+    pub tamping: Option<super::tamping::TampingSpec>,
     /// VTK output.
     #[serde(default)]
     pub output: OutputSpec,
@@ -736,6 +743,21 @@ impl Validate for NscdScene {
                 v.check("packing.wall_material", known(name), unknown(name));
             }
         }
+        if let Some(t) = &self.tamping {
+            v.nested("tamping", t);
+            v.check(
+                "tamping",
+                self.packing
+                    .as_ref()
+                    .is_some_and(|p| p.sleeper_material.is_some()),
+                "needs a [packing] with a sleeper_material (the tamped sleeper is one of its sleepers)",
+            );
+            v.check(
+                "tamping.tine_material",
+                known(&t.tine_material),
+                unknown(&t.tine_material),
+            );
+        }
         if let Some(a) = &self.analysis {
             v.check(
                 "analysis.kind",
@@ -941,6 +963,8 @@ pub struct Model {
     pub stone_diameters: Vec<f64>,
     /// The boxes and driven meshes, each with its bodies (one per convex piece).
     pub driven: Vec<DrivenBody>,
+    /// The tamping cycle's sleeper, tines, phases and control boxes.
+    pub tamping: Option<super::tamping::TampingPlan>,
 }
 
 /// A `[[box]]` or `[[driven]]` of the scene and the bodies it became.
@@ -1096,6 +1120,7 @@ impl NscdScene {
             }
         }
         let mut stone_diameters = Vec::new();
+        let mut tamping = None;
         if let Some(s) = &self.stones {
             let (placed, diameters) = place_stones(self, s, scene_path)?;
             bodies.extend(placed);
@@ -1119,12 +1144,23 @@ impl NscdScene {
             )?;
             bodies.extend(packed.bodies);
             stone_diameters.extend(packed.stone_diameters);
+            if let Some(t) = &self.tamping {
+                let plan = super::tamping::build(
+                    t,
+                    scene_path,
+                    &packing,
+                    self.material_index(&t.tine_material),
+                    &mut bodies,
+                )?;
+                tamping = Some(plan);
+            }
         }
         Ok(Model {
             bodies,
             friction,
             stone_diameters,
             driven,
+            tamping,
         })
     }
 }

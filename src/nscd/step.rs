@@ -446,9 +446,16 @@ impl MoreauJean {
 fn free_rotation(body: &Body, dt: f64) -> Vector3<f64> {
     let w = body.angular_velocity;
     let inertia = body.inertia;
-    let momentum = inertia.component_mul(&w);
+    // A held axis (infinite inertia, ω = 0 about it) carries no momentum here.
+    let momentum = Vector3::from_fn(|k, _| {
+        if inertia[k].is_finite() {
+            inertia[k] * w[k]
+        } else {
+            0.0
+        }
+    });
     let mut next = w - dt * w.cross(&momentum).component_div(&inertia);
-    let energy = |v: &Vector3<f64>| v.dot(&inertia.component_mul(v));
+    let energy = |v: &Vector3<f64>| super::body::rotational_energy(&inertia, v);
     let (before, after) = (energy(&w), energy(&next));
     if after > 0.0 {
         next *= (before / after).sqrt();

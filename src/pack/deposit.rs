@@ -620,7 +620,8 @@ impl Deposition {
                 model.density,
                 model.material,
                 pose,
-            );
+            )
+            .without_yaw();
             body.velocity = Vector3::zeros();
             self.bodies.push(body);
             self.roles.push(Role::Sleeper(k));

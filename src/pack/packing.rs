@@ -13,6 +13,7 @@
 //! container_min = [0.0, -0.6, 0.0]
 //! container_max = [1.8, 0.6, 0.9]
 //! sides = "walls"
+//! crib_top_m = 0.3         # the crib ballast's surface (optional)
 //!
 //! [[mesh]]                 # mesh files, relative to the packing file
 //! file = "../../meshes/stones/stone_001.msh"
@@ -105,6 +106,9 @@ pub struct Packing {
     pub container_max: [f64; 3],
     /// Side condition in y.
     pub sides: String,
+    /// Level of the crib ballast's struck-off surface (m); absent in older files.
+    #[serde(default)]
+    pub crib_top_m: Option<f64>,
     /// Meshes.
     #[serde(rename = "mesh")]
     pub meshes: Vec<PackedMesh>,
@@ -136,6 +140,9 @@ impl Packing {
         let _ = writeln!(out, "container_min = {}", numbers(&self.container_min));
         let _ = writeln!(out, "container_max = {}", numbers(&self.container_max));
         let _ = writeln!(out, "sides = \"{}\"", self.sides);
+        if let Some(top) = self.crib_top_m {
+            let _ = writeln!(out, "crib_top_m = {top:?}");
+        }
         for m in &self.meshes {
             let _ = writeln!(
                 out,
@@ -247,6 +254,7 @@ mod tests {
             container_min: [0.0, -0.5, 0.0],
             container_max: [1.0, 0.5, 1.0 / 3.0],
             sides: "walls".into(),
+            crib_top_m: Some(0.25),
             meshes: vec![PackedMesh {
                 file: "stones/stone_001.msh".into(),
                 scale: 1.0,

@@ -417,7 +417,7 @@ pub fn run(ctx: &RunContext) -> Result<()> {
 
     // Files.
     let clock = Instant::now();
-    let packing = packing_of(
+    let mut packing = packing_of(
         &scene,
         &bed,
         sleeper.as_ref(),
@@ -425,6 +425,7 @@ pub fn run(ctx: &RunContext) -> Result<()> {
         crib_top.max(top),
         &ctx.out_dir,
     )?;
+    packing.crib_top_m = Some(crib_top);
     packing.write(&ctx.out_dir.join("packing.toml"))?;
     let (stones, sleepers) = split(&bed.bodies, &bed.roles);
     write_vtu(
@@ -646,6 +647,7 @@ fn packing_of(
         container_min: [0.0, -0.5 * bed.setup.width, 0.0],
         container_max: [bed.setup.length, 0.5 * bed.setup.width, top],
         sides: scene.bed.sides.clone(),
+        crib_top_m: None,
         meshes,
         stones,
         sleepers,

@@ -1,0 +1,817 @@
+//! The tamping cycle of seed 000 §3 (Figure 4) as prescribed motions: the `[tamping]`
+//! table of an NSCD scene on a `ballast-pack` packing.
+//!
+//! A tamping unit lowers vibrating tines into the crib ballast on both sides of one
+//! sleeper, to just below its underside, squeezes them towards the sleeper, and pulls
+//! them out again, while the track (here: that sleeper) is held lifted by the planned
+//! amount; the squeezed stones fill the void the lift opened. Per cycle:
+//!
+//! 1. **penetrate**: the tines' tips go from `clearance` above the sleeper's top to
+//!    `tip_below` under its underside at `penetration_speed`; during the first cycle the
+//!    sleeper rises by `lift` over the same time;
+//! 2. **squeeze**: each tine moves `squeeze` towards the sleeper over `squeeze_time`;
+//! 3. **withdraw**: the tines rise back at `withdraw_speed` and open by `squeeze` on
+//!    the way, ending where they started.
+//!
+//! Every speed change is a linear ramp of `ramp` (a velocity table,
+//! [`super::motion::VelocityTable`]), so the driven bodies follow their exact integrals.
+//! All along, the tines vibrate along x, `amplitude · sin 2πft`, the two sides in
+//! opposition (as the tine arms of a unit driven by one eccentric shaft).
+//!
+//! Defaults, from the tamping literature the issue collects: 35 Hz, 4 mm (amplitude
+//! 4–5 mm), squeezing 1 s (0.8–1.2 s, never over 2 s), tips 15 mm under the sleeper
+//! (15–20 mm), lift 20 mm. ASSUMED (no figure found): penetration and withdrawal at
+//! 0.5 m/s, 20 mm of squeeze per tine, ramps of 10 ms. The squeeze is prescribed as a
+//! displacement, not as the 10–12 kN static squeezing force of a real unit: the
+//! forces that result are reported instead ([`TampingMonitor`]).
+//!
+//! ```toml
+//! [tamping]
+//! sleeper = 1                       # which sleeper of the packing (from 1; default: middle)
+//! tine_mesh = "../meshes/tine.msh"
+//! tine_convex = ["blade", "shank"]  # pieces, as in [[driven]]
+//! tine_material = "steel"
+//! tine_y = ["-0.08 m", "0.08 m"]    # tines on each side (default: ± a quarter sleeper)
+//! gap = "50 mm"                     # tine to sleeper side at the start
+//! cycles = 1
+//! ```
+
+use std::path::Path;
+use std::sync::Arc;
+
+use nalgebra::{Point3, UnitQuaternion, Vector3};
+use serde::Deserialize;
+
+use super::body::{Body, BodyShape, Motion, Prescribed};
+use super::motion::{mesh_pieces, Pieces, VelocityTable};
+use super::scene::DrivenBody;
+use super::step::SolvedContact;
+use crate::geometry::{convex_volume_in_box, ControlBox};
+use crate::pack::Packing;
+use crate::scene::{Frequency, Length, Time, Validate, Validator, Velocity};
+use crate::{Error, Result};
+
+/// `[tamping]`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TampingSpec {
+    /// The tamped sleeper, numbered from 1 along x (default: the middle one).
+    #[serde(default)]
+    pub sleeper: Option<usize>,
+    /// The tine's `.msh` file (relative to the scene): tip at z = 0, paddle faces
+    /// normal to x (geo/tine.geo).
+    pub tine_mesh: std::path::PathBuf,
+    /// Its convex pieces.
+    #[serde(default = "tine_pieces")]
+    pub tine_convex: Pieces,
+    /// Factor on the tine mesh's coordinates.
+    #[serde(default = "one")]
+    pub tine_scale: f64,
+    /// Material of the tines.
+    pub tine_material: String,
+    /// World y of the tines on each side (default: the sleeper's centre ± a quarter of
+    /// its length).
+    #[serde(default)]
+    pub tine_y: Option<Vec<Length>>,
+    /// Clearance between a tine and the sleeper's side at the start.
+    #[serde(default = "gap")]
+    pub gap: Length,
+    /// Height of the tine tips above the sleeper's top at the start.
+    #[serde(default = "clearance")]
+    pub clearance: Length,
+    /// Depth of the tips under the sleeper's underside at the end of penetration.
+    #[serde(default = "tip_below")]
+    pub tip_below: Length,
+    /// Speed of penetration.
+    #[serde(default = "half_metre_per_s")]
+    pub penetration_speed: Velocity,
+    /// Largest travel of each tine towards the sleeper while squeezing.
+    #[serde(default = "squeeze")]
+    pub squeeze: Length,
+    /// The squeezing force of one tine's cylinder: a tine advances while the ballast
+    /// pushes back less than this.
+    #[serde(default = "squeeze_force")]
+    pub squeeze_force: crate::scene::Force,
+    /// Duration of the squeeze.
+    #[serde(default = "squeeze_time")]
+    pub squeeze_time: Time,
+    /// Speed of withdrawal.
+    #[serde(default = "half_metre_per_s")]
+    pub withdraw_speed: Velocity,
+    /// Duration of each speed ramp.
+    #[serde(default = "ramp")]
+    pub ramp: Time,
+    /// Vibration frequency.
+    #[serde(default = "frequency")]
+    pub frequency: Frequency,
+    /// Vibration amplitude (displacement, along x).
+    #[serde(default = "amplitude")]
+    pub amplitude: Length,
+    /// Lift of the sleeper during the first penetration.
+    #[serde(default = "lift")]
+    pub lift: Length,
+    /// Tamping cycles.
+    #[serde(default = "one_cycle")]
+    pub cycles: usize,
+    /// Compactness and forces every this many steps.
+    #[serde(default = "one_cycle")]
+    pub sample_every: usize,
+}
+
+fn tine_pieces() -> Pieces {
+    Pieces::Groups(vec!["blade".into(), "shank".into()])
+}
+fn one() -> f64 {
+    1.0
+}
+fn one_cycle() -> usize {
+    1
+}
+fn gap() -> Length {
+    Length::from_si(0.05)
+}
+fn clearance() -> Length {
+    Length::from_si(0.01)
+}
+fn tip_below() -> Length {
+    Length::from_si(0.015)
+}
+fn half_metre_per_s() -> Velocity {
+    Velocity::from_si(0.5)
+}
+fn squeeze() -> Length {
+    Length::from_si(0.02)
+}
+fn squeeze_force() -> crate::scene::Force {
+    crate::scene::Force::from_si(11e3)
+}
+fn squeeze_time() -> Time {
+    Time::from_si(1.0)
+}
+fn ramp() -> Time {
+    Time::from_si(0.01)
+}
+fn frequency() -> Frequency {
+    Frequency::from_si(35.0)
+}
+fn amplitude() -> Length {
+    Length::from_si(0.004)
+}
+fn lift() -> Length {
+    Length::from_si(0.02)
+}
+
+impl Validate for TampingSpec {
+    fn validate(&self, v: &mut Validator) {
+        if let Some(k) = self.sleeper {
+            v.check("sleeper", k >= 1, "sleepers are numbered from 1");
+        }
+        v.check(
+            "tamping.tine_scale",
+            self.tine_scale > 0.0 && self.tine_scale.is_finite(),
+            "must be positive",
+        );
+        if let Some(ys) = &self.tine_y {
+            v.check("tine_y", !ys.is_empty(), "give at least one y");
+        }
+        v.positive("gap", self.gap);
+        v.non_negative("clearance", self.clearance);
+        v.non_negative("tip_below", self.tip_below);
+        v.positive("penetration_speed", self.penetration_speed);
+        v.positive("withdraw_speed", self.withdraw_speed);
+        v.positive("squeeze_force", self.squeeze_force);
+        v.non_negative("squeeze", self.squeeze);
+        v.positive("ramp", self.ramp);
+        v.non_negative("frequency", self.frequency);
+        v.non_negative("amplitude", self.amplitude);
+        v.non_negative("lift", self.lift);
+        v.check("cycles", self.cycles >= 1, "must be at least 1");
+        v.check("sample_every", self.sample_every >= 1, "must be at least 1");
+        v.check(
+            "tamping.squeeze_time",
+            self.squeeze_time.si() > self.ramp.si(),
+            "must be longer than tamping.ramp",
+        );
+        v.check(
+            "tamping.squeeze",
+            self.squeeze.si() + self.amplitude.si() < self.gap.si(),
+            "the squeeze plus the vibration amplitude must stay below tamping.gap (a tine \
+             never reaches the sleeper: two driven bodies do not interact)",
+        );
+    }
+}
+
+/// One phase of the cycle.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Phase {
+    /// `penetrate`, `squeeze` or `withdraw`.
+    pub name: &'static str,
+    /// Cycle number, from 1.
+    pub cycle: usize,
+    /// Start and end times (s).
+    pub start: f64,
+    /// End time (s).
+    pub end: f64,
+}
+
+/// What a `[tamping]` table built: which bodies are the sleeper and the tines, the
+/// phases, and the control boxes in which the compactness is followed.
+#[derive(Debug, Clone)]
+pub struct TampingPlan {
+    /// The tamped sleeper's number (from 1) and body index.
+    pub sleeper_number: usize,
+    /// Body index of the tamped sleeper.
+    pub sleeper: usize,
+    /// The tines (`tine_L1`, `tine_R1`, …: left/right of the sleeper), each with its
+    /// pieces' body indices.
+    pub tines: Vec<DrivenBody>,
+    /// The phases, in time order.
+    pub phases: Vec<Phase>,
+    /// Control boxes (fixed, from the packing at t = 0): the packing's boxes, then
+    /// `lift_gap` (the tamped sleeper's footprint between its underside before and
+    /// after the lift) when the lift is not zero.
+    pub boxes: Vec<(String, ControlBox)>,
+    /// Index into `boxes` of the box under the tamped sleeper. This one follows the
+    /// sleeper up: it is the layer of the same height right under its underside, so
+    /// "after" measures the ballast the lifted sleeper will rest on.
+    pub tamped_box: usize,
+    /// The tamped sleeper's height at the start (m).
+    pub sleeper_start_z: f64,
+    /// Compactness every this many steps.
+    pub sample_every: u64,
+    /// +1 for a tine left of the sleeper (squeezing along +x), −1 right of it.
+    pub sides: Vec<f64>,
+    /// Squeeze speed while the ballast yields (m/s): the travel over the squeeze time.
+    pub squeeze_speed: f64,
+    /// Largest travel (m).
+    pub squeeze_travel: f64,
+    /// The cylinder's force (N).
+    pub squeeze_force: f64,
+}
+
+impl TampingPlan {
+    /// The control boxes now: the tamped sleeper's box raised by its lift so far.
+    pub fn boxes_now(&self, bodies: &[Body]) -> Vec<(String, ControlBox)> {
+        let mut boxes = self.boxes.clone();
+        let dz = Vector3::z() * (bodies[self.sleeper].position.z - self.sleeper_start_z);
+        let bx = &mut boxes[self.tamped_box].1;
+        bx.min += dz;
+        bx.max += dz;
+        boxes
+    }
+
+    /// When the last cycle ends (s).
+    pub fn end(&self) -> f64 {
+        self.phases.last().map_or(0.0, |p| p.end)
+    }
+
+    /// The phase at time `t` (`None` outside every phase).
+    pub fn phase_at(&self, t: f64) -> Option<&Phase> {
+        self.phases.iter().find(|p| t > p.start && t <= p.end)
+    }
+}
+
+/// Trapezoid breakpoints: from rest at `t0`, `v` from `t0 + ramp` to `t1 − ramp`, rest
+/// at `t1`; the distance covered is `|v| (t1 − t0 − ramp)`.
+fn trapezoid(
+    times: &mut Vec<f64>,
+    values: &mut Vec<Vector3<f64>>,
+    t0: f64,
+    t1: f64,
+    ramp: f64,
+    v: Vector3<f64>,
+) {
+    for (t, value) in [
+        (t0, Vector3::zeros()),
+        (t0 + ramp, v),
+        (t1 - ramp, v),
+        (t1, Vector3::zeros()),
+    ] {
+        if times.last() == Some(&t) {
+            continue;
+        }
+        times.push(t);
+        values.push(value);
+    }
+}
+
+/// Builds the `[tamping]` of a scene over the packing's bodies: turns the tamped
+/// sleeper (a dynamic body named `sleeper_K` in `bodies`) into a driven body that
+/// lifts, appends the tines (infinite-mass pieces of `tine_material`), and returns the
+/// plan. `scene_path` is for errors and the mesh path; `packing_file` for the boxes'
+/// errors.
+pub fn build(
+    spec: &TampingSpec,
+    scene_path: &Path,
+    packing: &Packing,
+    tine_material: u32,
+    bodies: &mut Vec<Body>,
+) -> Result<TampingPlan> {
+    let invalid =
+        |key: &str, why: String| Error::invalid(scene_path, format!("key tamping.{key}: {why}"));
+    let count = packing.sleepers.len();
+    if count == 0 {
+        return Err(invalid("sleeper", "the packing has no sleepers".into()));
+    }
+    let number = spec.sleeper.unwrap_or(count.div_ceil(2));
+    if number > count {
+        return Err(invalid(
+            "sleeper",
+            format!("{number} is past the packing's {count} sleepers"),
+        ));
+    }
+    let sleeper_box = |k: usize| -> Result<(Point3<f64>, Point3<f64>)> {
+        let name = format!("sleeper_{k}");
+        let body = bodies.iter().find(|b| b.name == name).ok_or_else(|| {
+            invalid(
+                "sleeper",
+                "the packing's sleepers are not in the scene (give packing.sleeper_material)"
+                    .into(),
+            )
+        })?;
+        Ok(crate::pack::deposit::bounds(&body.world_vertices()))
+    };
+    let sleepers: Vec<(Point3<f64>, Point3<f64>)> =
+        (1..=count).map(sleeper_box).collect::<Result<_>>()?;
+    let (lo, hi) = sleepers[number - 1];
+    let index = bodies
+        .iter()
+        .position(|b| b.name == format!("sleeper_{number}"))
+        .expect("found above");
+
+    // Timeline.
+    let ramp = spec.ramp.si();
+    let z_start = hi.z + spec.clearance.si();
+    let depth = z_start - (lo.z - spec.tip_below.si());
+    let t_pen = depth / spec.penetration_speed.si() + ramp;
+    let t_squeeze = spec.squeeze_time.si();
+    let t_out = depth / spec.withdraw_speed.si() + ramp;
+    let mut phases = Vec::new();
+    let mut t = 0.0;
+    for cycle in 1..=spec.cycles {
+        for (name, length) in [
+            ("penetrate", t_pen),
+            ("squeeze", t_squeeze),
+            ("withdraw", t_out),
+        ] {
+            phases.push(Phase {
+                name,
+                cycle,
+                start: t,
+                end: t + length,
+            });
+            t += length;
+        }
+    }
+
+    // Tines: the left ones (x < sleeper) squeeze along +x; the right ones are the same
+    // mesh turned half a turn about z, squeezing along −x.
+    let mesh_file = super::scene::NscdScene::resolve(scene_path, &spec.tine_mesh);
+    let mesh = crate::mesh::read_msh(&mesh_file)
+        .map_err(|e| invalid("tine_mesh", super::packed::one_line(&e)))?;
+    let pieces = mesh_pieces(&mesh, &spec.tine_convex).map_err(|e| invalid("tine_convex", e))?;
+    let all: Vec<Point3<f64>> = pieces
+        .iter()
+        .flat_map(|(_, p)| p.iter().map(|q| q * spec.tine_scale))
+        .collect();
+    let (tine_lo, tine_hi) = crate::pack::deposit::bounds(&all);
+    let centre_y = 0.5 * (lo.y + hi.y);
+    let ys: Vec<f64> = match &spec.tine_y {
+        Some(ys) => ys.iter().map(|y| y.si()).collect(),
+        None => {
+            let quarter = 0.25 * (hi.y - lo.y);
+            vec![centre_y - quarter, centre_y + quarter]
+        }
+    };
+    let (gap, squeeze, amplitude) = (spec.gap.si(), spec.squeeze.si(), spec.amplitude.si());
+    let mut tines = Vec::new();
+    let mut sides = Vec::new();
+    for (side, sign) in [("L", 1.0), ("R", -1.0)] {
+        // Turned tines: x ↦ −x, y ↦ −y in the mesh frame.
+        let turn = if sign > 0.0 {
+            UnitQuaternion::identity()
+        } else {
+            UnitQuaternion::from_euler_angles(0.0, 0.0, std::f64::consts::PI)
+        };
+        // The face towards the sleeper is the mesh's max-x face on both sides.
+        let x = if sign > 0.0 {
+            lo.x - gap - tine_hi.x
+        } else {
+            hi.x + gap + tine_hi.x
+        };
+        // Furthest reach away from the sleeper, with the vibration.
+        let far = if sign > 0.0 {
+            x + tine_lo.x - amplitude
+        } else {
+            x - tine_lo.x + amplitude
+        };
+        let mut times = Vec::new();
+        let mut values = Vec::new();
+        for cycle in phases.chunks(3) {
+            let [pen, out] = [&cycle[0], &cycle[2]];
+            trapezoid(
+                &mut times,
+                &mut values,
+                pen.start,
+                pen.end,
+                ramp,
+                Vector3::new(0.0, 0.0, -spec.penetration_speed.si()),
+            );
+            trapezoid(
+                &mut times,
+                &mut values,
+                out.start,
+                out.end,
+                ramp,
+                Vector3::new(0.0, 0.0, spec.withdraw_speed.si()),
+            );
+        }
+        let table = VelocityTable::new(times, values).map_err(|e| invalid("squeeze_time", e))?;
+        let prescribed = Prescribed {
+            amplitude: Vector3::new(sign * amplitude, 0.0, 0.0),
+            frequency: spec.frequency.si(),
+            ..Prescribed::default()
+        }
+        .with_table(table);
+        // Room on the far side: the container's wall or the neighbouring sleeper.
+        let neighbour = if sign > 0.0 {
+            number.checked_sub(2)
+        } else {
+            (number < count).then_some(number)
+        };
+        let wall = if sign > 0.0 {
+            packing.container_min[0]
+        } else {
+            packing.container_max[0]
+        };
+        let limit = neighbour.map_or(wall, |k| {
+            if sign > 0.0 {
+                sleepers[k].1.x
+            } else {
+                sleepers[k].0.x
+            }
+        });
+        if (far - limit) * sign < 0.0 {
+            return Err(invalid(
+                "gap",
+                format!(
+                    "a tine {} of sleeper {number} would reach x = {far:.4} m, past the {} at x = {limit:.4} m \
+                     (make tamping.gap smaller or the tine thinner)",
+                    if sign > 0.0 { "left" } else { "right" },
+                    if neighbour.is_some() { "next sleeper" } else { "container wall" },
+                ),
+            ));
+        }
+        for (k, &y) in ys.iter().enumerate() {
+            let name = format!("tine_{side}{}", k + 1);
+            let shift = Vector3::new(x, y, z_start);
+            let mut indices = Vec::new();
+            for (piece, points) in &pieces {
+                let world: Vec<Point3<f64>> = points
+                    .iter()
+                    .map(|p| Point3::from(turn * (spec.tine_scale * p.coords) + shift))
+                    .collect();
+                let principal = BodyShape::convex_hull(
+                    &world,
+                    &format!("key tamping.tine_convex: piece \"{piece}\""),
+                )
+                .map_err(|e| Error::invalid(scene_path, super::packed::one_line(&e)))?;
+                indices.push(bodies.len());
+                bodies.push(Body::fixed(
+                    &format!("{name}/{piece}"),
+                    Arc::new(principal.shape),
+                    tine_material,
+                    principal.pose,
+                    Motion::Driven(prescribed.clone()),
+                ));
+            }
+            tines.push(DrivenBody {
+                name,
+                pieces: indices,
+            });
+            sides.push(sign);
+        }
+    }
+
+    // The sleeper: held, lifted during the first penetration.
+    let lift = spec.lift.si();
+    let old = &bodies[index];
+    let motion = if lift > 0.0 {
+        let (mut times, mut values) = (Vec::new(), Vec::new());
+        let first = &phases[0];
+        trapezoid(
+            &mut times,
+            &mut values,
+            first.start,
+            first.end,
+            ramp,
+            Vector3::new(0.0, 0.0, lift / (t_pen - ramp)),
+        );
+        Motion::Driven(
+            Prescribed::default()
+                .with_table(VelocityTable::new(times, values).map_err(|e| invalid("lift", e))?),
+        )
+    } else {
+        Motion::Static
+    };
+    bodies[index] = Body::fixed(
+        &old.name,
+        old.shape.clone(),
+        old.material,
+        old.pose(),
+        motion,
+    );
+
+    // Control boxes, as ballast-pack measures them.
+    let [x0, y0, z0] = packing.container_min;
+    let [x1, y1, _] = packing.container_max;
+    if x0 != 0.0 || y0 != -y1 {
+        return Err(invalid(
+            "sleeper",
+            "the packing's container is not [0, L] × [−W/2, W/2] as ballast-pack writes it".into(),
+        ));
+    }
+    let crib_top = packing.crib_top_m.unwrap_or(hi.z);
+    let mut boxes = crate::pack::report::control_boxes(
+        x1,
+        y1 - y0,
+        lo.z - z0,
+        &sleepers,
+        crib_top,
+        packing.d50_m,
+    );
+    let tamped_box = boxes
+        .iter()
+        .position(|(n, _)| *n == format!("under_sleeper_{number}"))
+        .expect("one box per sleeper");
+    if lift > 0.0 {
+        let under = boxes[tamped_box].1;
+        boxes.push((
+            "lift_gap".to_string(),
+            ControlBox {
+                min: Point3::new(under.min.x, under.min.y, lo.z),
+                max: Point3::new(under.max.x, under.max.y, lo.z + lift),
+            },
+        ));
+    }
+    Ok(TampingPlan {
+        sleeper_number: number,
+        sleeper: index,
+        tines,
+        phases,
+        boxes,
+        tamped_box,
+        sleeper_start_z: bodies[index].position.z,
+        sample_every: spec.sample_every as u64,
+        sides,
+        squeeze_speed: squeeze / t_squeeze,
+        squeeze_travel: squeeze,
+        squeeze_force: spec.squeeze_force.si(),
+    })
+}
+
+/// Σ volume(stone ∩ box) / volume(box) for every box, over the dynamic bodies that are
+/// not sleepers (exact clipping, [`convex_volume_in_box`]).
+pub fn stone_compactness(bodies: &[Body], boxes: &[(String, ControlBox)]) -> Vec<f64> {
+    boxes
+        .iter()
+        .map(|(_, bx)| {
+            let solid: f64 = bodies
+                .iter()
+                .filter(|b| b.is_dynamic() && !b.name.starts_with("sleeper_"))
+                .map(|b| convex_volume_in_box(&b.shape.vertices, &b.shape.triangles, &b.pose(), bx))
+                .sum();
+            solid / bx.volume()
+        })
+        .collect()
+}
+
+/// The force (N, world) that the contacts of a step put on the bodies `pieces`: their
+/// impulses over `dt`.
+pub fn force_on(pieces: &[usize], contacts: &[SolvedContact], dt: f64) -> Vector3<f64> {
+    let mut impulse = Vector3::zeros();
+    for c in contacts {
+        let (a, b) = (c.contact.key.body_a as usize, c.contact.key.body_b as usize);
+        // The impulse acts on the second body along +world, on the first along −world.
+        let world =
+            c.frame[0] * c.impulse[0] + c.frame[1] * c.impulse[1] + c.frame[2] * c.impulse[2];
+        if pieces.contains(&b) {
+            impulse += world;
+        }
+        if pieces.contains(&a) {
+            impulse -= world;
+        }
+    }
+    impulse / dt
+}
+
+/// The per-step record of a tamping run and its summary figures.
+#[derive(Debug, Clone)]
+pub struct TampingMonitor {
+    /// The plan.
+    pub plan: TampingPlan,
+    /// Compactness in every box at t = 0.
+    pub before: Vec<f64>,
+    /// The latest sample.
+    pub latest: Vec<f64>,
+    /// Compactness of the tamped box at the start and end of each squeeze.
+    pub squeeze: Vec<[f64; 2]>,
+    /// Largest |force| on the sleeper (N).
+    pub max_sleeper_force: f64,
+    /// Largest squeezing force (along the squeeze, N) on one tine, and the mean over
+    /// the squeeze phases of the tines' mean.
+    pub max_tine_force: f64,
+    /// Σ and count of the tines' mean squeezing force over squeeze samples.
+    pub squeeze_force_sum: f64,
+    /// Samples in the sums.
+    pub squeeze_samples: usize,
+    /// Each tine's travel towards the sleeper so far (m).
+    pub travel: Vec<f64>,
+    /// Each tine's squeezing force in the last step (N).
+    pub last_force: Vec<f64>,
+}
+
+impl TampingMonitor {
+    /// A monitor with the compactness of `bodies` at t = 0.
+    pub fn new(plan: TampingPlan, bodies: &[Body]) -> Self {
+        let before = stone_compactness(bodies, &plan.boxes_now(bodies));
+        let tines = plan.tines.len();
+        TampingMonitor {
+            latest: before.clone(),
+            plan,
+            before,
+            squeeze: Vec::new(),
+            max_sleeper_force: 0.0,
+            max_tine_force: 0.0,
+            squeeze_force_sum: 0.0,
+            squeeze_samples: 0,
+            travel: vec![0.0; tines],
+            last_force: vec![0.0; tines],
+        }
+    }
+
+    /// Sets the tines' squeeze velocity for the step from `time` to `time + dt`, the
+    /// squeezing cylinder's law: while squeezing, a tine advances at the squeeze speed
+    /// as long as the ballast pushed back less than the cylinder's force in the last
+    /// step and its travel is below the largest; while withdrawing it goes back to its
+    /// start at an even speed over the phase's remaining steps; otherwise it holds.
+    /// The velocity is the constant part of the tine's prescribed motion, so with
+    /// θ = 1 the travel recorded here is exactly the one the step makes.
+    pub fn actuate(&mut self, time: f64, dt: f64, bodies: &mut [Body]) {
+        let plan = &self.plan;
+        let phase = plan.phase_at(time + 0.5 * dt);
+        for (k, tine) in plan.tines.iter().enumerate() {
+            let speed = match phase {
+                Some(p) if p.name == "squeeze" => {
+                    if self.last_force[k] < plan.squeeze_force {
+                        plan.squeeze_speed
+                            .min((plan.squeeze_travel - self.travel[k]) / dt)
+                            .max(0.0)
+                    } else {
+                        0.0
+                    }
+                }
+                Some(p) if p.name == "withdraw" => {
+                    let left = ((p.end - time) / dt).round().max(1.0);
+                    -self.travel[k] / (left * dt)
+                }
+                _ => 0.0,
+            };
+            self.travel[k] += speed * dt;
+            for &piece in &tine.pieces {
+                if let Motion::Driven(p) = &mut bodies[piece].motion {
+                    p.velocity.x = plan.sides[k] * speed;
+                }
+            }
+        }
+    }
+
+    /// Column names of the tamping CSV.
+    pub fn columns(&self) -> Vec<String> {
+        let mut columns = vec!["time_s".to_string(), "cycle".into(), "phase".into()];
+        columns.extend(
+            self.plan
+                .boxes
+                .iter()
+                .map(|(n, _)| format!("compactness_{n}")),
+        );
+        columns.extend(["sleeper_fx_N", "sleeper_fy_N", "sleeper_fz_N"].map(String::from));
+        for t in &self.plan.tines {
+            columns.extend(["fx_N", "fy_N", "fz_N", "travel_m"].map(|c| format!("{}_{c}", t.name)));
+        }
+        columns
+    }
+
+    /// Records the step that ended at `time` (`sample`: measure the compactness) and
+    /// returns the CSV row: time, cycle, phase (1 penetrate, 2 squeeze, 3 withdraw, 0
+    /// after the last cycle), compactness per box, forces.
+    pub fn record(
+        &mut self,
+        time: f64,
+        sample: bool,
+        bodies: &[Body],
+        contacts: &[SolvedContact],
+        dt: f64,
+    ) -> Vec<f64> {
+        let phase = self.plan.phase_at(time).cloned();
+        if sample {
+            self.latest = stone_compactness(bodies, &self.plan.boxes_now(bodies));
+        }
+        let tamped = self.latest[self.plan.tamped_box];
+        if let Some(p) = &phase {
+            if p.name == "squeeze" {
+                let k = p.cycle - 1;
+                if self.squeeze.len() <= k {
+                    self.squeeze.push([tamped, tamped]);
+                }
+                self.squeeze[k][1] = tamped;
+            }
+        }
+        let sleeper = force_on(&[self.plan.sleeper], contacts, dt);
+        self.max_sleeper_force = self.max_sleeper_force.max(sleeper.norm());
+        let mut row = vec![
+            time,
+            phase.as_ref().map_or(0.0, |p| p.cycle as f64),
+            phase.as_ref().map_or(0.0, |p| match p.name {
+                "penetrate" => 1.0,
+                "squeeze" => 2.0,
+                _ => 3.0,
+            }),
+        ];
+        row.extend(&self.latest);
+        row.extend([sleeper.x, sleeper.y, sleeper.z]);
+        let mut squeezing = 0.0;
+        for (k, t) in self.plan.tines.iter().enumerate() {
+            let f = force_on(&t.pieces, contacts, dt);
+            // The ballast resists the squeeze: along −x on the left tines, +x on the right.
+            let along = -self.plan.sides[k] * f.x;
+            self.last_force[k] = along;
+            self.max_tine_force = self.max_tine_force.max(along);
+            squeezing += along / self.plan.tines.len() as f64;
+            row.extend([f.x, f.y, f.z, self.travel[k]]);
+        }
+        if phase.as_ref().is_some_and(|p| p.name == "squeeze") {
+            self.squeeze_force_sum += squeezing;
+            self.squeeze_samples += 1;
+        }
+        row
+    }
+
+    /// The summary's tamping figures: `compactness_before` and `compactness_after`
+    /// under the tamped sleeper (and their relative change), every box before and
+    /// after, the compactness at the start and end of each squeeze, the phases, and
+    /// the largest forces.
+    pub fn figures(&self, summary: crate::scene::Summary) -> crate::scene::Summary {
+        let k = self.plan.tamped_box;
+        let (before, after) = (self.before[k], self.latest[k]);
+        let boxes: Vec<serde_json::Value> = self
+            .plan
+            .boxes
+            .iter()
+            .enumerate()
+            .map(|(i, (name, bx))| {
+                serde_json::json!({
+                    "box": name,
+                    "min_m": [bx.min.x, bx.min.y, bx.min.z],
+                    "max_m": [bx.max.x, bx.max.y, bx.max.z],
+                    "before": self.before[i],
+                    "after": self.latest[i],
+                })
+            })
+            .collect();
+        let squeezes: Vec<serde_json::Value> = self
+            .squeeze
+            .iter()
+            .enumerate()
+            .map(
+                |(c, [start, end])| serde_json::json!({"cycle": c + 1, "start": start, "end": end}),
+            )
+            .collect();
+        let phases: Vec<serde_json::Value> = self
+            .plan
+            .phases
+            .iter()
+            .map(|p| serde_json::json!({"cycle": p.cycle, "name": p.name, "start_s": p.start, "end_s": p.end}))
+            .collect();
+        summary
+            .figure("tamped_sleeper", self.plan.sleeper_number)
+            .figure("tines", self.plan.tines.len())
+            .figure("compactness_before", before)
+            .figure("compactness_after", after)
+            .figure("compactness_change_relative", (after - before) / before)
+            .figure("compactness", boxes)
+            .figure("compactness_squeeze", squeezes)
+            .figure("tamping_phases", phases)
+            .figure("tamping_end_s", self.plan.end())
+            .figure("max_sleeper_force_N", self.max_sleeper_force)
+            .figure("max_tine_squeeze_force_N", self.max_tine_force)
+            .figure(
+                "mean_tine_squeeze_force_N",
+                if self.squeeze_samples > 0 {
+                    self.squeeze_force_sum / self.squeeze_samples as f64
+                } else {
+                    f64::NAN
+                },
+            )
+    }
+}
