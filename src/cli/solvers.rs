@@ -39,6 +39,10 @@ pub struct NscdCli {
     command: Option<NscdCommand>,
     #[command(flatten)]
     run: Option<RunArgs>,
+    /// Continue a killed run from the checkpoint in its output directory DIR (give the
+    /// killed run's scene, --preset and --set again; implies --out DIR).
+    #[arg(long, value_name = "DIR")]
+    resume: Option<PathBuf>,
 }
 
 /// Sub-commands of `ballast-nscd` besides running a scene.
@@ -72,7 +76,23 @@ pub fn run_nscd(cli: NscdCli) -> crate::Result<()> {
             }),
             _,
         ) => super::fc3d::run(&file, tol, max_iter, json),
-        (None, Some(run)) => run.context()?.run_on_pool(crate::nscd::run::run)?,
+        (None, Some(run)) => {
+            let mut ctx = run.context()?;
+            let resume = cli.resume.is_some();
+            if let Some(dir) = cli.resume {
+                if run.out.as_ref().is_some_and(|out| *out != dir) {
+                    return Err(crate::Error::Message(format!(
+                        "--resume {} and --out {}: a run resumes in its own directory",
+                        dir.display(),
+                        run.out
+                            .as_ref()
+                            .map_or(String::new(), |o| o.display().to_string())
+                    )));
+                }
+                ctx.out_dir = dir;
+            }
+            ctx.run_on_pool(|c| crate::nscd::run::run_with(c, resume))?
+        }
         (None, None) => Err(crate::Error::Message(
             "ballast-nscd: give a SCENE.toml or a sub-command (see --help)".into(),
         )),

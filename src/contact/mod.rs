@@ -33,7 +33,9 @@ pub use shape::{Collider, ConvexShape};
 
 /// A contact's identity from step to step: the two bodies (in the order of the contact)
 /// and the parry feature ids (vertex, edge or face codes) that touch.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize,
+)]
 pub struct ContactKey {
     /// The first body (the normal points away from it).
     pub body_a: u32,
@@ -86,6 +88,21 @@ impl ImpulseMemory {
         self.impulses.clear();
         for (key, r) in entries {
             self.impulses.insert(key, *r);
+        }
+    }
+
+    /// Every stored key and impulse, sorted by key (for a checkpoint: the same memory
+    /// gives the same list).
+    pub fn entries(&self) -> Vec<(ContactKey, [f64; 3])> {
+        let mut entries: Vec<_> = self.impulses.iter().map(|(k, r)| (*k, *r)).collect();
+        entries.sort_unstable_by_key(|(k, _)| *k);
+        entries
+    }
+
+    /// The memory holding `entries` (from [`Self::entries`]).
+    pub fn from_entries(entries: &[(ContactKey, [f64; 3])]) -> Self {
+        ImpulseMemory {
+            impulses: entries.iter().copied().collect(),
         }
     }
 

@@ -25,6 +25,7 @@
 
 pub mod body;
 pub mod body_nlgs;
+pub mod checkpoint;
 pub mod coulomb;
 pub mod motion;
 pub mod nlgs;

@@ -20,7 +20,10 @@ use std::time::Instant;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use nalgebra::{Point3, Vector3};
 
+use serde::{Deserialize, Serialize};
+
 use super::body::{Body, Motion};
+use super::checkpoint::{Checkpoint, CHECKPOINT_FILE};
 use super::nlgs::{ErrorCheck, NlgsOptions, Stopping};
 use super::scene::{DrivenBody, Model, NscdScene};
 use super::step::{MoreauJean, SolvedContact, StepParams};
@@ -30,8 +33,24 @@ use crate::output::{write_json, CsvSeries, Grid, PvdWriter};
 use crate::scene::{PhaseTimer, RunContext, Summary};
 use crate::{Error, Result};
 
-/// Runs the scene of `ctx`.
+/// Runs the scene of `ctx` from the start.
 pub fn run(ctx: &RunContext) -> Result<()> {
+    run_with(ctx, false)
+}
+
+/// What a checkpoint keeps of the run loop besides the bodies and the contacts.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+struct LoopState {
+    stats: RunStats,
+    slider_samples: Vec<(f64, f64)>,
+    slider_mu: Option<f64>,
+    pushes: Vec<PushCheck>,
+    tamping: Option<super::tamping::TampingState>,
+}
+
+/// Runs the scene of `ctx`; with `resume`, from the checkpoint in the output directory
+/// (written by a run of the same scene, preset and overrides).
+pub fn run_with(ctx: &RunContext, resume: bool) -> Result<()> {
     let threads = ctx.configure_threads()?;
     let mut timer = PhaseTimer::new();
     let (scene, inputs): (NscdScene, _) = timer.time("read scene", || ctx.load_scene())?;
@@ -104,8 +123,22 @@ pub fn run(ctx: &RunContext) -> Result<()> {
     let has_driven_vtk = bodies
         .iter()
         .any(|b| !b.is_dynamic() && b.shape.collider.is_bounded());
-    let mut outputs = Outputs::create(&ctx.out_dir, has_driven_vtk)?;
-    outputs.frame(0.0, &bodies, &[], &[])?;
+    let scene_text = toml::to_string(&inputs)
+        .map_err(|e| Error::Message(format!("cannot write the merged scene: {e}")))?;
+    let checkpoint_path = ctx.out_dir.join(CHECKPOINT_FILE);
+    let resumed: Option<Checkpoint<LoopState>> = if resume {
+        Some(Checkpoint::read(&checkpoint_path, &scene_text)?)
+    } else {
+        None
+    };
+    let mut outputs = Outputs::open(
+        &ctx.out_dir,
+        has_driven_vtk,
+        resumed.as_ref().map(|c| (c.time, c.frames)),
+    )?;
+    if resumed.is_none() {
+        outputs.frame(0.0, &bodies, &[], &[])?;
+    }
     let frame_every = if scene.output.frames == 0 {
         u64::MAX
     } else {
@@ -143,13 +176,52 @@ pub fn run(ctx: &RunContext) -> Result<()> {
             });
             let columns = monitor.columns();
             let names: Vec<&str> = columns.iter().map(String::as_str).collect();
-            let csv = CsvSeries::create(ctx.out_dir.join("tamping.csv"), &names)?;
+            let path = ctx.out_dir.join("tamping.csv");
+            let csv = match &resumed {
+                Some(c) => CsvSeries::open_existing(path, &names, c.time)?,
+                None => CsvSeries::create(path, &names)?,
+            };
             Some((monitor, csv))
         }
         None => None,
     };
 
     let mut stats = RunStats::default();
+    let mut first_step = 1;
+    if let Some(c) = resumed {
+        pipeline.set_memory(c.restore(&checkpoint_path, &mut bodies)?);
+        first_step = c.step + 1;
+        let state = c.extra;
+        stats = state.stats;
+        slider_samples = state.slider_samples;
+        slider_mu = state.slider_mu;
+        pushes = state.pushes;
+        if let (Some((monitor, _)), Some(saved)) = (&mut tamping, state.tamping) {
+            monitor.state = saved;
+        }
+        println!(
+            "ballast-nscd: resumed from {} at step {} (t = {:.4} s)",
+            checkpoint_path.display(),
+            c.step,
+            c.time
+        );
+    }
+    let capture = |step: u64,
+                   time: f64,
+                   frames: usize,
+                   bodies: &[Body],
+                   pipeline: &MoreauJean,
+                   extra: LoopState| {
+        Checkpoint::capture(
+            scene_text.clone(),
+            step,
+            time,
+            frames,
+            bodies,
+            pipeline.memory(),
+            extra,
+        )
+    };
     let bar = ProgressBar::with_draw_target(Some(steps), ProgressDrawTarget::stderr_with_hz(4));
     bar.set_style(
         ProgressStyle::with_template("{bar:40} {pos}/{len} steps, {per_sec}, eta {eta}")
@@ -157,8 +229,9 @@ pub fn run(ctx: &RunContext) -> Result<()> {
     );
     let start = Instant::now();
     let mut frames_s = 0.0;
-    let mut time = 0.0;
-    for step in 1..=steps {
+    let mut time = (first_step - 1) as f64 * dt;
+    bar.set_position(first_step - 1);
+    for step in first_step..=steps {
         if let Some((monitor, _)) = &mut tamping {
             monitor.actuate(time, dt, &mut bodies);
         }
@@ -216,6 +289,20 @@ pub fn run(ctx: &RunContext) -> Result<()> {
             outputs.frame(time, &bodies, pipeline.contacts(), pipeline.subdomains())?;
             frames_s += clock.elapsed().as_secs_f64();
             bar.set_position(step);
+        }
+        let every = scene.output.checkpoint_every;
+        if every > 0 && (step % every == 0 || step == steps) {
+            let clock = Instant::now();
+            let state = LoopState {
+                stats: stats.clone(),
+                slider_samples: slider_samples.clone(),
+                slider_mu,
+                pushes: pushes.clone(),
+                tamping: tamping.as_ref().map(|(m, _)| m.state.clone()),
+            };
+            capture(step, time, outputs.frames, &bodies, &pipeline, state)
+                .write(&checkpoint_path)?;
+            timer.add("checkpoints", clock.elapsed());
         }
         if !report.kinetic_energy.is_finite() {
             bar.abandon();
@@ -401,7 +488,7 @@ fn slope(samples: &[(f64, f64)]) -> f64 {
 /// One pusher–block pair of a `push` analysis: the impulse the pusher's pieces give the
 /// block per step (along the pusher's velocity) against Coulomb's µ m g h of the floor,
 /// and the block's velocity against the pusher's.
-#[derive(Debug)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 struct PushCheck {
     pieces: Vec<usize>,
     pushed: usize,
@@ -519,7 +606,7 @@ impl PushCheck {
 }
 
 /// Running figures of a run.
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Clone, Serialize, Deserialize)]
 struct RunStats {
     contacts_sum: u64,
     sweeps_sum: u64,
@@ -595,17 +682,27 @@ struct Outputs {
 }
 
 impl Outputs {
-    fn create(dir: &Path, driven: bool) -> Result<Self> {
+    /// New files, or (`resume`: the checkpoint's time and frame count) the files of
+    /// the killed run cut back to the checkpoint.
+    fn open(dir: &Path, driven: bool, resume: Option<(f64, usize)>) -> Result<Self> {
+        let pvd = |name: &str| match resume {
+            Some((time, _)) => PvdWriter::open_existing(dir.join(name), time),
+            None => PvdWriter::create(dir.join(name)),
+        };
+        let csv = |name: &str, columns: &[&str]| match resume {
+            Some((time, _)) => CsvSeries::open_existing(dir.join(name), columns, time),
+            None => CsvSeries::create(dir.join(name), columns),
+        };
         Ok(Outputs {
-            grains: PvdWriter::create(dir.join("grains.pvd"))?,
+            grains: pvd("grains.pvd")?,
             driven: if driven {
-                Some(PvdWriter::create(dir.join("driven.pvd"))?)
+                Some(pvd("driven.pvd")?)
             } else {
                 None
             },
-            contacts: PvdWriter::create(dir.join("contacts.pvd"))?,
-            residuals: CsvSeries::create(
-                dir.join("residuals.csv"),
+            contacts: pvd("contacts.pvd")?,
+            residuals: csv(
+                "residuals.csv",
                 &[
                     "time_s",
                     "contacts",
@@ -619,7 +716,7 @@ impl Outputs {
                     "energy_rise_J",
                 ],
             )?,
-            frames: 0,
+            frames: resume.map_or(0, |(_, frames)| frames),
         })
     }
 

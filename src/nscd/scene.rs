@@ -497,6 +497,14 @@ pub struct OutputSpec {
     /// VTK frames over the run (besides the initial one); 0 for none.
     #[serde(default = "default_frames")]
     pub frames: usize,
+    /// A checkpoint every this many steps, and at the end ([`super::checkpoint`]);
+    /// 0 for none.
+    #[serde(default = "default_checkpoint_every")]
+    pub checkpoint_every: u64,
+}
+
+fn default_checkpoint_every() -> u64 {
+    1000
 }
 
 fn default_frames() -> usize {
@@ -507,6 +515,7 @@ impl Default for OutputSpec {
     fn default() -> Self {
         OutputSpec {
             frames: default_frames(),
+            checkpoint_every: default_checkpoint_every(),
         }
     }
 }

@@ -193,6 +193,11 @@ impl MoreauJean {
         &self.memory
     }
 
+    /// Replaces the warm-start memory (resuming from a checkpoint).
+    pub fn set_memory(&mut self, memory: ImpulseMemory) {
+        self.memory = memory;
+    }
+
     /// Detects the contacts of the current configuration (no step), e.g. to measure
     /// the final interpenetration.
     pub fn detect(&mut self, bodies: &[Body]) -> Vec<ContactPoint> {

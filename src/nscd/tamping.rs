@@ -610,6 +610,13 @@ pub fn force_on(pieces: &[usize], contacts: &[SolvedContact], dt: f64) -> Vector
 pub struct TampingMonitor {
     /// The plan.
     pub plan: TampingPlan,
+    /// What changes from step to step (saved in checkpoints).
+    pub state: TampingState,
+}
+
+/// The running part of a [`TampingMonitor`].
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct TampingState {
     /// Compactness in every box at t = 0.
     pub before: Vec<f64>,
     /// The latest sample.
@@ -618,12 +625,11 @@ pub struct TampingMonitor {
     pub squeeze: Vec<[f64; 2]>,
     /// Largest |force| on the sleeper (N).
     pub max_sleeper_force: f64,
-    /// Largest squeezing force (along the squeeze, N) on one tine, and the mean over
-    /// the squeeze phases of the tines' mean.
+    /// Largest squeezing force (along the squeeze, N) on one tine.
     pub max_tine_force: f64,
-    /// Σ and count of the tines' mean squeezing force over squeeze samples.
+    /// Σ over squeeze steps of the tines' mean squeezing force (N).
     pub squeeze_force_sum: f64,
-    /// Samples in the sums.
+    /// Steps in the sum.
     pub squeeze_samples: usize,
     /// Each tine's travel towards the sleeper so far (m).
     pub travel: Vec<f64>,
@@ -637,16 +643,18 @@ impl TampingMonitor {
         let before = stone_compactness(bodies, &plan.boxes_now(bodies));
         let tines = plan.tines.len();
         TampingMonitor {
-            latest: before.clone(),
             plan,
-            before,
-            squeeze: Vec::new(),
-            max_sleeper_force: 0.0,
-            max_tine_force: 0.0,
-            squeeze_force_sum: 0.0,
-            squeeze_samples: 0,
-            travel: vec![0.0; tines],
-            last_force: vec![0.0; tines],
+            state: TampingState {
+                latest: before.clone(),
+                before,
+                squeeze: Vec::new(),
+                max_sleeper_force: 0.0,
+                max_tine_force: 0.0,
+                squeeze_force_sum: 0.0,
+                squeeze_samples: 0,
+                travel: vec![0.0; tines],
+                last_force: vec![0.0; tines],
+            },
         }
     }
 
@@ -663,9 +671,9 @@ impl TampingMonitor {
         for (k, tine) in plan.tines.iter().enumerate() {
             let speed = match phase {
                 Some(p) if p.name == "squeeze" => {
-                    if self.last_force[k] < plan.squeeze_force {
+                    if self.state.last_force[k] < plan.squeeze_force {
                         plan.squeeze_speed
-                            .min((plan.squeeze_travel - self.travel[k]) / dt)
+                            .min((plan.squeeze_travel - self.state.travel[k]) / dt)
                             .max(0.0)
                     } else {
                         0.0
@@ -673,11 +681,11 @@ impl TampingMonitor {
                 }
                 Some(p) if p.name == "withdraw" => {
                     let left = ((p.end - time) / dt).round().max(1.0);
-                    -self.travel[k] / (left * dt)
+                    -self.state.travel[k] / (left * dt)
                 }
                 _ => 0.0,
             };
-            self.travel[k] += speed * dt;
+            self.state.travel[k] += speed * dt;
             for &piece in &tine.pieces {
                 if let Motion::Driven(p) = &mut bodies[piece].motion {
                     p.velocity.x = plan.sides[k] * speed;
@@ -715,20 +723,20 @@ impl TampingMonitor {
     ) -> Vec<f64> {
         let phase = self.plan.phase_at(time).cloned();
         if sample {
-            self.latest = stone_compactness(bodies, &self.plan.boxes_now(bodies));
+            self.state.latest = stone_compactness(bodies, &self.plan.boxes_now(bodies));
         }
-        let tamped = self.latest[self.plan.tamped_box];
+        let tamped = self.state.latest[self.plan.tamped_box];
         if let Some(p) = &phase {
             if p.name == "squeeze" {
                 let k = p.cycle - 1;
-                if self.squeeze.len() <= k {
-                    self.squeeze.push([tamped, tamped]);
+                if self.state.squeeze.len() <= k {
+                    self.state.squeeze.push([tamped, tamped]);
                 }
-                self.squeeze[k][1] = tamped;
+                self.state.squeeze[k][1] = tamped;
             }
         }
         let sleeper = force_on(&[self.plan.sleeper], contacts, dt);
-        self.max_sleeper_force = self.max_sleeper_force.max(sleeper.norm());
+        self.state.max_sleeper_force = self.state.max_sleeper_force.max(sleeper.norm());
         let mut row = vec![
             time,
             phase.as_ref().map_or(0.0, |p| p.cycle as f64),
@@ -738,21 +746,21 @@ impl TampingMonitor {
                 _ => 3.0,
             }),
         ];
-        row.extend(&self.latest);
+        row.extend(&self.state.latest);
         row.extend([sleeper.x, sleeper.y, sleeper.z]);
         let mut squeezing = 0.0;
         for (k, t) in self.plan.tines.iter().enumerate() {
             let f = force_on(&t.pieces, contacts, dt);
             // The ballast resists the squeeze: along −x on the left tines, +x on the right.
             let along = -self.plan.sides[k] * f.x;
-            self.last_force[k] = along;
-            self.max_tine_force = self.max_tine_force.max(along);
+            self.state.last_force[k] = along;
+            self.state.max_tine_force = self.state.max_tine_force.max(along);
             squeezing += along / self.plan.tines.len() as f64;
-            row.extend([f.x, f.y, f.z, self.travel[k]]);
+            row.extend([f.x, f.y, f.z, self.state.travel[k]]);
         }
         if phase.as_ref().is_some_and(|p| p.name == "squeeze") {
-            self.squeeze_force_sum += squeezing;
-            self.squeeze_samples += 1;
+            self.state.squeeze_force_sum += squeezing;
+            self.state.squeeze_samples += 1;
         }
         row
     }
@@ -763,7 +771,7 @@ impl TampingMonitor {
     /// the largest forces.
     pub fn figures(&self, summary: crate::scene::Summary) -> crate::scene::Summary {
         let k = self.plan.tamped_box;
-        let (before, after) = (self.before[k], self.latest[k]);
+        let (before, after) = (self.state.before[k], self.state.latest[k]);
         let boxes: Vec<serde_json::Value> = self
             .plan
             .boxes
@@ -774,12 +782,13 @@ impl TampingMonitor {
                     "box": name,
                     "min_m": [bx.min.x, bx.min.y, bx.min.z],
                     "max_m": [bx.max.x, bx.max.y, bx.max.z],
-                    "before": self.before[i],
-                    "after": self.latest[i],
+                    "before": self.state.before[i],
+                    "after": self.state.latest[i],
                 })
             })
             .collect();
         let squeezes: Vec<serde_json::Value> = self
+            .state
             .squeeze
             .iter()
             .enumerate()
@@ -803,12 +812,12 @@ impl TampingMonitor {
             .figure("compactness_squeeze", squeezes)
             .figure("tamping_phases", phases)
             .figure("tamping_end_s", self.plan.end())
-            .figure("max_sleeper_force_N", self.max_sleeper_force)
-            .figure("max_tine_squeeze_force_N", self.max_tine_force)
+            .figure("max_sleeper_force_N", self.state.max_sleeper_force)
+            .figure("max_tine_squeeze_force_N", self.state.max_tine_force)
             .figure(
                 "mean_tine_squeeze_force_N",
-                if self.squeeze_samples > 0 {
-                    self.squeeze_force_sum / self.squeeze_samples as f64
+                if self.state.squeeze_samples > 0 {
+                    self.state.squeeze_force_sum / self.state.squeeze_samples as f64
                 } else {
                     f64::NAN
                 },

@@ -1,0 +1,162 @@
+//! Checkpoints of a `ballast-nscd` run, for `--resume DIR` after a run was killed.
+//!
+//! A checkpoint holds everything the next step depends on: every body's state, the
+//! contacts' impulses that warm-start the next NLGS, the step counter, how many VTK
+//! frames were written, and the run's running figures (`extra`: the residual
+//! statistics, the analysis samples, the tamping monitor with its squeeze actuators).
+//! The scene, the bodies' shapes and the prescribed motions come from the scene file
+//! again; the checkpoint keeps the merged scene text and refuses to resume another.
+//!
+//! The file (`checkpoint.bin`, bincode: f64 kept bit for bit) is written whole to a
+//! temporary file and renamed over the previous one, so a run killed at any moment
+//! leaves the previous checkpoint or the new one, never half of one. Resuming truncates
+//! the CSV series and the `.pvd` collections back to the checkpoint's time, so a
+//! resumed run's files are the uninterrupted run's files.
+
+use std::path::Path;
+
+use nalgebra::{Quaternion, UnitQuaternion, Vector3};
+use serde::{de::DeserializeOwned, Deserialize, Serialize};
+
+use super::body::Body;
+use crate::contact::{ContactKey, ImpulseMemory};
+use crate::{Error, Result};
+
+/// The format tag.
+pub const CHECKPOINT_FORMAT: &str = "ballast-nscd checkpoint 1";
+
+/// The file name in the output directory.
+pub const CHECKPOINT_FILE: &str = "checkpoint.bin";
+
+/// One body's state.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct BodyState {
+    /// Mass centre (m).
+    pub position: [f64; 3],
+    /// Principal frame `[w, x, y, z]`.
+    pub orientation: [f64; 4],
+    /// Velocity (m/s).
+    pub velocity: [f64; 3],
+    /// Angular velocity in the principal frame (rad/s).
+    pub angular_velocity: [f64; 3],
+}
+
+/// A run's state after a step.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Checkpoint<T> {
+    /// [`CHECKPOINT_FORMAT`].
+    pub format: String,
+    /// The merged scene (after preset and overrides), as TOML text.
+    pub scene: String,
+    /// Steps done.
+    pub step: u64,
+    /// Time reached (s).
+    pub time: f64,
+    /// VTK frames written (the initial one included).
+    pub frames: usize,
+    /// Every body, in scene order.
+    pub bodies: Vec<BodyState>,
+    /// The warm-start impulses, sorted by key.
+    pub memory: Vec<(ContactKey, [f64; 3])>,
+    /// The run's own running figures.
+    pub extra: T,
+}
+
+impl<T> Checkpoint<T> {
+    /// The state of `bodies` and `memory` after `step` steps.
+    pub fn capture(
+        scene: String,
+        step: u64,
+        time: f64,
+        frames: usize,
+        bodies: &[Body],
+        memory: &ImpulseMemory,
+        extra: T,
+    ) -> Self {
+        let v = |v: &Vector3<f64>| [v.x, v.y, v.z];
+        Checkpoint {
+            format: CHECKPOINT_FORMAT.to_string(),
+            scene,
+            step,
+            time,
+            frames,
+            bodies: bodies
+                .iter()
+                .map(|b| {
+                    let q = b.orientation.quaternion();
+                    BodyState {
+                        position: v(&b.position),
+                        orientation: [q.w, q.i, q.j, q.k],
+                        velocity: v(&b.velocity),
+                        angular_velocity: v(&b.angular_velocity),
+                    }
+                })
+                .collect(),
+            memory: memory.entries(),
+            extra,
+        }
+    }
+
+    /// Puts the saved state back into `bodies` (built from the same scene); the error
+    /// names `path`.
+    pub fn restore(&self, path: &Path, bodies: &mut [Body]) -> Result<ImpulseMemory> {
+        if self.bodies.len() != bodies.len() {
+            return Err(Error::invalid(
+                path,
+                format!(
+                    "the checkpoint has {} bodies, the scene builds {}",
+                    self.bodies.len(),
+                    bodies.len()
+                ),
+            ));
+        }
+        for (body, s) in bodies.iter_mut().zip(&self.bodies) {
+            let [w, x, y, z] = s.orientation;
+            body.position = Vector3::from(s.position);
+            body.orientation = UnitQuaternion::new_unchecked(Quaternion::new(w, x, y, z));
+            body.velocity = Vector3::from(s.velocity);
+            body.angular_velocity = Vector3::from(s.angular_velocity);
+        }
+        Ok(ImpulseMemory::from_entries(&self.memory))
+    }
+}
+
+impl<T: Serialize> Checkpoint<T> {
+    /// Writes the checkpoint atomically to `path`.
+    pub fn write(&self, path: &Path) -> Result<()> {
+        let bytes = bincode::serialize(self)
+            .map_err(|e| Error::invalid(path, format!("cannot encode the checkpoint: {e}")))?;
+        crate::output::write_atomic(path, &bytes)
+    }
+}
+
+impl<T: DeserializeOwned> Checkpoint<T> {
+    /// Reads a checkpoint and checks it was written for `scene` (the merged scene
+    /// text); errors are one line naming the file.
+    pub fn read(path: &Path, scene: &str) -> Result<Self> {
+        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        let checkpoint: Checkpoint<T> = bincode::deserialize(&bytes).map_err(|e| {
+            Error::invalid(
+                path,
+                format!("not a {CHECKPOINT_FORMAT} file of this version ({e})"),
+            )
+        })?;
+        if checkpoint.format != CHECKPOINT_FORMAT {
+            return Err(Error::invalid(
+                path,
+                format!(
+                    "format \"{}\", expected \"{CHECKPOINT_FORMAT}\"",
+                    checkpoint.format
+                ),
+            ));
+        }
+        if checkpoint.scene != scene {
+            return Err(Error::invalid(
+                path,
+                "was written for another scene, preset or --set (resume with the same \
+                 arguments as the killed run)",
+            ));
+        }
+        Ok(checkpoint)
+    }
+}
