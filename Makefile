@@ -43,7 +43,7 @@ include $(sort $(wildcard mk/*.mk))
 
 .PHONY: all setup build meshes gallery test lint clean distclean readme-figure
 
-all: gallery qdem-quick $(QDEM_CHART) pack-quick
+all: gallery qdem-quick $(QDEM_CHART) pack-quick tamping
 
 ## Set-up: Debian packages the build links (mk/system-deps.mk) and a project-local venv
 ## with the pinned Python tools.

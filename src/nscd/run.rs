@@ -62,6 +62,14 @@ pub fn run_with(ctx: &RunContext, resume: bool) -> Result<()> {
         tamping,
     } = timer.time("build bodies", || scene.build(&ctx.scene_path))?;
     std::fs::create_dir_all(ctx.out_dir.join("frames")).map_err(|e| Error::io(&ctx.out_dir, e))?;
+    let scene_text = toml::to_string(&inputs)
+        .map_err(|e| Error::Message(format!("cannot write the merged scene: {e}")))?;
+    let checkpoint_path = ctx.out_dir.join(CHECKPOINT_FILE);
+    let resumed: Option<Checkpoint<LoopState>> = if resume {
+        Some(Checkpoint::read(&checkpoint_path, &scene_text)?)
+    } else {
+        None
+    };
     let dt = scene.time.dt.si();
     let steps = (scene.time.duration.si() / dt).round().max(1.0) as u64;
     if let Some(plan) = &tamping {
@@ -123,14 +131,6 @@ pub fn run_with(ctx: &RunContext, resume: bool) -> Result<()> {
     let has_driven_vtk = bodies
         .iter()
         .any(|b| !b.is_dynamic() && b.shape.collider.is_bounded());
-    let scene_text = toml::to_string(&inputs)
-        .map_err(|e| Error::Message(format!("cannot write the merged scene: {e}")))?;
-    let checkpoint_path = ctx.out_dir.join(CHECKPOINT_FILE);
-    let resumed: Option<Checkpoint<LoopState>> = if resume {
-        Some(Checkpoint::read(&checkpoint_path, &scene_text)?)
-    } else {
-        None
-    };
     let mut outputs = Outputs::open(
         &ctx.out_dir,
         has_driven_vtk,

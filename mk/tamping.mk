@@ -1,0 +1,27 @@
+# ballast-nscd tamping (issue #7): scenes/tamping.toml on a ballast-pack bed. The quick
+# preset (on the quick bed) and its chart end the default `make`. `make bench-tamping`
+# (part of `make bench`) runs the seed's Table 3 case in its three versions: hours on
+# 2 cores, and it needs the table3 bed (`make pack-presets`); TAMPING_BENCH_STEPS=N runs
+# the first N of its 2 272 steps, TAMPING_BENCH_PRESET=quick the quick bed instead.
+# Included by the main Makefile, which defines PY, RELEASE, RUST_SOURCES, VENV_STAMP and
+# PACK_QUICK (mk/pack.mk).
+
+TAMPING_QUICK := results/tamping-quick/summary.json
+TAMPING_CHART := results/tamping_quick.png
+TAMPING_BENCH_PRESET ?= table3
+TAMPING_BENCH_STEPS ?= 2272
+
+.PHONY: tamping bench-tamping
+bench: bench-tamping
+
+tamping: $(TAMPING_CHART)
+$(TAMPING_QUICK): scenes/tamping.toml $(PACK_QUICK) meshes/tine.msh $(RUST_SOURCES) | $(RELEASE)/ballast-nscd
+	$(RELEASE)/ballast-nscd $< --preset quick --out $(@D)
+$(TAMPING_CHART): tools/tamping_report.py $(TAMPING_QUICK) | $(VENV_STAMP)
+	$(PY) $< chart $(dir $(TAMPING_QUICK)) $@
+
+bench-tamping: results/bed-$(TAMPING_BENCH_PRESET)/summary.json meshes/tine.msh | $(RELEASE)/ballast-nscd $(VENV_STAMP)
+	$(PY) tools/tamping_report.py bench --nscd $(RELEASE)/ballast-nscd \
+	  --preset $(TAMPING_BENCH_PRESET) --steps $(TAMPING_BENCH_STEPS) \
+	  --out results/bench-tamping-$(TAMPING_BENCH_PRESET) \
+	  | tee results/bench-tamping-$(TAMPING_BENCH_PRESET).md

@@ -1,0 +1,183 @@
+"""Chart and bench table of ballast-nscd tamping runs (issue #7; seed 000 §3-4).
+
+  tamping_report.py chart DIR OUT.png
+      compactness per control box, tine travel and squeezing forces against time,
+      from DIR/tamping.csv and DIR/summary.json, the phases shaded.
+  tamping_report.py bench --nscd BIN --preset P --steps N --out DIR
+      runs scenes/tamping.toml --preset P for its first N steps in the three versions
+      of the seed's Table 3 (1: no DDM, 1 thread; 2: synchronous DDM, 2 threads;
+      3: asynchronous DDM, 2 threads) and prints the wall times in the Table 3 layout
+      beside the seed's (923 / 621 / 607 min on 1 / 3 / 3 cores), the speedup and
+      efficiency as in its Table 2, and the asynchronous run's compactness against
+      the synchronous one's (issue #7: within 2 %; the seed: 1.7 %).
+"""
+
+import csv
+import json
+import os
+import subprocess
+import sys
+
+# Seed 000 Table 3 (minutes): version -> (cores, total, detection, NLGS, other).
+SEED_TABLE3 = {
+    1: (1, 923, 193, 708, 22),
+    2: (3, 621, 175, 424, 22),
+    3: (3, 607, 172, 414, 21),
+}
+VERSIONS = {
+    1: ("sequential (no DDM)", "none", 1),
+    2: ("synchronous DDM", "synchronous", 2),
+    3: ("asynchronous DDM", "asynchronous", 2),
+}
+
+
+def load(directory):
+    with open(os.path.join(directory, "summary.json")) as f:
+        summary = json.load(f)
+    with open(os.path.join(directory, "tamping.csv")) as f:
+        rows = [{k: float(v) for k, v in r.items()} for r in csv.DictReader(f)]
+    return summary, rows
+
+
+def chart(directory, out):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    summary, rows = load(directory)
+    fig = summary["figures"]
+    t = [r["time_s"] for r in rows]
+    boxes = [c for c in rows[0] if c.startswith("compactness_")]
+    tines = sorted({c[: -len("_travel_m")] for c in rows[0] if c.endswith("_travel_m")})
+    figure, (ax1, ax2, ax3) = plt.subplots(3, 1, figsize=(8, 9), sharex=True)
+    for ax in (ax1, ax2, ax3):
+        for p in fig["tamping_phases"]:
+            if p["name"] == "squeeze":
+                ax.axvspan(p["start_s"], p["end_s"], color="0.9")
+    tamped = "under_sleeper_%d" % fig["tamped_sleeper"]
+    for c in boxes:
+        name = c[len("compactness_"):]
+        style = dict(lw=2.0) if name == tamped else dict(lw=1.0, alpha=0.8)
+        label = name + (" (follows the sleeper)" if name == tamped else "")
+        ax1.plot(t, [r[c] for r in rows], label=label, **style)
+    ax1.set_ylabel("solid fraction")
+    ax1.set_title(
+        "tamping %s: under sleeper %d %.3f -> %.3f (squeeze shaded)"
+        % (summary.get("preset") or "", fig["tamped_sleeper"],
+           fig["compactness_before"], fig["compactness_after"])
+    )
+    ax1.legend(fontsize=7, loc="lower left")
+    for name in tines:
+        ax2.plot(t, [1e3 * r[name + "_travel_m"] for r in rows], label=name)
+        sign = 1.0 if name.startswith("tine_R") else -1.0
+        ax3.plot(t, [sign * r[name + "_fx_N"] / 1e3 for r in rows], lw=0.6, label=name)
+    ax2.set_ylabel("squeeze travel (mm)")
+    ax2.legend(fontsize=7)
+    ax3.set_ylabel("squeezing force (kN)")
+    ax3.set_yscale("symlog", linthresh=1.0)
+    ax3.axhline(fig.get("squeeze_force_N", 11e3) / 1e3, color="k", lw=0.8, ls="--")
+    ax3.set_xlabel("time (s)")
+    figure.tight_layout()
+    figure.savefig(out, dpi=110)
+    print("tamping_report: wrote", out)
+
+
+def phase_minutes(summary):
+    w = summary["wall_time_s"]
+    total = summary["figures"]["stepping_s"]
+    detect = w.get("detect", 0.0)
+    solve = w.get("solve", 0.0)
+    sub = w.get("solve: subdomains (parallel)", 0.0)
+    gamma = w.get("solve: interface (sequential)", 0.0)
+    return {
+        "total": total,
+        "detect": detect,
+        "solve": solve,
+        "sub": sub,
+        "gamma": gamma,
+        "other": total - detect - solve,
+    }
+
+
+def bench(nscd, preset, steps, out):
+    os.makedirs(out, exist_ok=True)
+    results = {}
+    for version, (name, driver, threads) in VERSIONS.items():
+        d = os.path.join(out, "version-%d" % version)
+        base = [nscd, "scenes/tamping.toml", "--preset", preset, "--out", d,
+                "--threads", str(threads), "--set", "ddm.driver=\"%s\"" % driver,
+                "--set", "output.frames=2"]
+        # The preset's step, from a dry read of its summary after a 1-step run.
+        probe = base[:]
+        probe[probe.index("--out") + 1] = d + "-probe"
+        subprocess.run(probe + ["--set", "time.duration=1e-9"], check=True,
+                       stdout=subprocess.DEVNULL)
+        with open(os.path.join(d + "-probe", "summary.json")) as f:
+            dt = json.load(f)["figures"]["dt_s"]
+        cmd = base + ["--set", "time.duration=%r" % (steps * dt)]
+        print("tamping_report:", " ".join(cmd), file=sys.stderr, flush=True)
+        subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
+        with open(os.path.join(d, "summary.json")) as f:
+            results[version] = json.load(f)
+    ref = phase_minutes(results[1])
+    print("\n## Table 3 layout: %s preset, %d steps (minutes; seed's in brackets)\n"
+          % (preset, steps))
+    print("| | " + " | ".join("version %d: %s" % (v, VERSIONS[v][0]) for v in VERSIONS) + " |")
+    print("|---|" + "---|" * len(VERSIONS))
+    rows = [("cores", None), ("total", "total"), ("contact detection", "detect"),
+            ("NLGS solve", "solve"), ("— subdomains (parallel)", "sub"),
+            ("— interface (sequential)", "gamma"), ("other parts", "other")]
+    seed_col = {"total": 1, "detect": 2, "solve": 3, "other": 4}
+    for label, key in rows:
+        cells = []
+        for v in VERSIONS:
+            if key is None:
+                cells.append("%d [%d]" % (VERSIONS[v][2], SEED_TABLE3[v][0]))
+                continue
+            value = phase_minutes(results[v])[key] / 60.0
+            seed = SEED_TABLE3[v][seed_col[key]] if key in seed_col else None
+            cells.append("%.2f" % value + (" [%d]" % seed if seed is not None else ""))
+        print("| %s | %s |" % (label, " | ".join(cells)))
+    print("\n## Speedup and efficiency against version 1 (Table 2 layout)\n")
+    print("| version | threads | NLGS speedup | NLGS efficiency | full speedup | full efficiency | seed full speedup |")
+    print("|---|---|---|---|---|---|---|")
+    for v in (2, 3):
+        p = phase_minutes(results[v])
+        threads = VERSIONS[v][2]
+        s_solve = ref["solve"] / p["solve"]
+        s_full = ref["total"] / p["total"]
+        seed = SEED_TABLE3[1][1] / SEED_TABLE3[v][1]
+        print("| %d | %d | %.2f | %.1f %% | %.2f | %.1f %% | %.2f on 3 cores |"
+              % (v, threads, s_solve, 100 * s_solve / threads, s_full,
+                 100 * s_full / threads, seed))
+    print("\n## Physics of the three versions\n")
+    print("| version | compactness before | after | squeeze start -> end | max interpenetration (m) | final mean interpenetration (m) |")
+    print("|---|---|---|---|---|---|")
+    for v, s in results.items():
+        f = s["figures"]
+        sq = f["compactness_squeeze"][0] if f["compactness_squeeze"] else {"start": float("nan"), "end": float("nan")}
+        print("| %d | %.4f | %.4f | %.4f -> %.4f | %.3e | %.3e |"
+              % (v, f["compactness_before"], f["compactness_after"], sq["start"], sq["end"],
+                 f["max_interpenetration_m"], f["final_mean_interpenetration_m"]))
+    a, b = results[3]["figures"], results[2]["figures"]
+    diff = (a["compactness_after"] - b["compactness_after"]) / b["compactness_after"]
+    print("\nasynchronous vs synchronous compactness after: %+.2f %% (issue #7: within 2 %%; seed 000: 1.7 %%)"
+          % (100 * diff))
+
+
+def main(argv):
+    if len(argv) == 3 and argv[0] == "chart":
+        chart(argv[1], argv[2])
+        return 0
+    if argv and argv[0] == "bench":
+        opts = dict(zip(argv[1::2], argv[2::2]))
+        bench(opts["--nscd"], opts.get("--preset", "table3"), int(opts.get("--steps", "2272")),
+              opts.get("--out", "results/bench-tamping"))
+        return 0
+    print(__doc__, file=sys.stderr)
+    return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
