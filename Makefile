@@ -1,13 +1,15 @@
 # ballast: geometry -> meshes -> solvers -> VTK/CSV -> charts.
 #
 #   make          set up what is missing, build, mesh everything, run the default scenes
-#                 (mesh gallery, the QDEM quick scenes and their chart, then the quick
-#                 ballast bed of ballast-pack and its chart)
+#                 (mesh gallery, the QDEM quick scenes and their chart, the quick
+#                 ballast bed of ballast-pack and its chart, then the quick tamping
+#                 cycle of ballast-nscd on that bed and its chart)
 #   make test     set up, check formatting and lints, run every test
 #   make meshes   mesh every geo/*.geo and the stone family
 #   make paper    the QDEM scenes at the paper's resolution and the convergence table
 #   make bench    QDEM throughput at paper resolution, NSCD throughput and the DDM
-#                 efficiency (quick bed), each on 1 and 2 threads
+#                 efficiency (quick bed), each on 1 and 2 threads; the seed's Table 3
+#                 tamping case in its three versions (hours; needs the table3 bed)
 #   make clean    remove build outputs, meshes and results (keeps the venv)
 #
 # Every step has real file dependencies: a second `make` does nothing. The default
@@ -72,9 +74,12 @@ results/mesh_gallery/summary.json: scenes/mesh_gallery.toml $(OBJECT_MESHES) $(S
 
 ## README pictures: the meshes rendered from the gallery's VTK files, the QDEM quick
 ## chart, and the speed/accuracy chart when `make speed-accuracy` has run.
-readme-figure: docs/img/meshes.png docs/img/qdem_quick.png docs/img/bed_quick.png
+readme-figure: docs/img/meshes.png docs/img/qdem_quick.png docs/img/bed_quick.png docs/img/tamping_quick.png
 	@if [ -f results/speed_accuracy/chart.png ]; then cp results/speed_accuracy/chart.png docs/img/speed_accuracy.png; fi
 docs/img/qdem_quick.png: $(QDEM_CHART)
+	@mkdir -p $(@D)
+	cp $< $@
+docs/img/tamping_quick.png: $(TAMPING_CHART)
 	@mkdir -p $(@D)
 	cp $< $@
 docs/img/bed_quick.png: $(PACK_CHART)

@@ -670,14 +670,10 @@ impl TampingMonitor {
         let phase = plan.phase_at(time + 0.5 * dt);
         for (k, tine) in plan.tines.iter().enumerate() {
             let speed = match phase {
-                Some(p) if p.name == "squeeze" => {
-                    if self.state.last_force[k] < plan.squeeze_force {
-                        plan.squeeze_speed
-                            .min((plan.squeeze_travel - self.state.travel[k]) / dt)
-                            .max(0.0)
-                    } else {
-                        0.0
-                    }
+                Some(p) if p.name == "squeeze" && self.state.last_force[k] < plan.squeeze_force => {
+                    plan.squeeze_speed
+                        .min((plan.squeeze_travel - self.state.travel[k]) / dt)
+                        .max(0.0)
                 }
                 Some(p) if p.name == "withdraw" => {
                     let left = ((p.end - time) / dt).round().max(1.0);
