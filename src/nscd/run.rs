@@ -245,6 +245,7 @@ pub fn run_with(ctx: &RunContext, resume: bool) -> Result<()> {
             timer.add("solve: interface (sequential)", report.solve_split[1]);
         }
         stats.record(&report, &bodies, &initial);
+        stats.record_deepest(time, pipeline.contacts());
         outputs.residuals.push(&[
             time,
             report.contacts as f64,
@@ -364,6 +365,16 @@ pub fn run_with(ctx: &RunContext, resume: bool) -> Result<()> {
             stats.sweeps_contacts as f64 / timer.get("solve").as_secs_f64().max(1e-12),
         )
         .figure("stepping_s", stepping_s);
+    if let Some((depth, at, a, b)) = stats.deepest {
+        summary = summary.figure(
+            "deepest_overlap",
+            serde_json::json!({
+                "depth_m": depth,
+                "step_end_s": at,
+                "bodies": [bodies[a as usize].name, bodies[b as usize].name],
+            }),
+        );
+    }
     if !stone_diameters.is_empty() {
         let mut sorted = stone_diameters.clone();
         sorted.sort_by(f64::total_cmp);
@@ -623,6 +634,8 @@ struct RunStats {
     max_kinetic: f64,
     last_kinetic: f64,
     max_speed: Vec<f64>,
+    /// The deepest overlap at the start of a step: depth (m), time (s), the two bodies.
+    deepest: Option<(f64, f64, u32, u32)>,
 }
 
 impl RunStats {
@@ -663,6 +676,21 @@ impl RunStats {
             let pose = body.pose();
             for (p, p0) in body.shape.vertices.iter().zip(&initial[k]) {
                 self.max_drift = self.max_drift.max((pose * p - p0).norm());
+            }
+        }
+    }
+
+    /// Keeps the deepest of `contacts` (a step's, detected at its start) if it is the
+    /// deepest so far.
+    fn record_deepest(&mut self, time: f64, contacts: &[SolvedContact]) {
+        if let Some(c) = contacts
+            .iter()
+            .min_by(|a, b| a.contact.gap.total_cmp(&b.contact.gap))
+        {
+            let depth = -c.contact.gap;
+            if depth > 0.0 && self.deepest.is_none_or(|(d, ..)| depth > d) {
+                let key = c.contact.key;
+                self.deepest = Some((depth, time, key.body_a, key.body_b));
             }
         }
     }

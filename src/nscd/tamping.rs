@@ -7,14 +7,15 @@
 //! amount; the squeezed stones fill the void the lift opened. Per cycle:
 //!
 //! 1. **penetrate**: the tines' tips go from `clearance` above the sleeper's top to
-//!    `tip_below` under its underside at `penetration_speed`; during the first cycle the
-//!    sleeper rises by `lift` over the same time;
-//! 2. **squeeze**: each tine moves `squeeze` towards the sleeper over `squeeze_time`;
-//! 3. **withdraw**: the tines rise back at `withdraw_speed` and open by `squeeze` on
-//!    the way, ending where they started.
-//!
-//! Every speed change is a linear ramp of `ramp` (a velocity table,
-//! [`super::motion::VelocityTable`]), so the driven bodies follow their exact integrals.
+//!    `tip_below` under its underside at `penetration_speed` (optionally only while
+//!    the ballast resists less than `penetration_force`); during the first cycle the
+//!    sleeper rises by `lift` over the same time (ramps of `ramp`);
+//! 2. **squeeze**: for `squeeze_time`, each tine advances towards the sleeper at
+//!    `squeeze / squeeze_time` while the ballast pushes back with less than
+//!    `squeeze_force`, averaged over a vibration period (the squeezing cylinder's law,
+//!    [`TampingMonitor::actuate`]), up to `squeeze` of travel;
+//! 3. **withdraw**: the tines rise back and open by their travel, evenly over the time
+//!    `withdraw_speed` gives the planned depth, ending where they started.
 //! All along, the tines vibrate along x, `amplitude · sin 2πft`, the two sides in
 //! opposition (as the tine arms of a unit driven by one eccentric shaft).
 //!
@@ -85,6 +86,11 @@ pub struct TampingSpec {
     /// Speed of penetration.
     #[serde(default = "half_metre_per_s")]
     pub penetration_speed: Velocity,
+    /// A limit on the force that drives one tine down: it then descends only while
+    /// the ballast pushes it up with less than this. Without it (the default) the
+    /// tines go down as prescribed, as a real unit's do.
+    #[serde(default)]
+    pub penetration_force: Option<crate::scene::Force>,
     /// Largest travel of each tine towards the sleeper while squeezing.
     #[serde(default = "squeeze")]
     pub squeeze: Length,
@@ -180,6 +186,9 @@ impl Validate for TampingSpec {
         v.positive("penetration_speed", self.penetration_speed);
         v.positive("withdraw_speed", self.withdraw_speed);
         v.positive("squeeze_force", self.squeeze_force);
+        if let Some(force) = self.penetration_force {
+            v.positive("penetration_force", force);
+        }
         v.non_negative("squeeze", self.squeeze);
         v.positive("ramp", self.ramp);
         v.non_negative("frequency", self.frequency);
@@ -247,6 +256,15 @@ pub struct TampingPlan {
     pub squeeze_travel: f64,
     /// The cylinder's force (N).
     pub squeeze_force: f64,
+    /// Penetration speed while the ballast yields (m/s).
+    pub penetration_speed: f64,
+    /// Depth the tips should reach, below their start (m).
+    pub penetration_depth: f64,
+    /// The limit on the force driving a tine down (N; infinite for none).
+    pub penetration_force: f64,
+    /// Time constant of the cylinders' response to the ballast's push (s): one
+    /// vibration period (or the squeeze time without vibration).
+    pub response_time: f64,
 }
 
 impl TampingPlan {
@@ -405,34 +423,12 @@ pub fn build(
         } else {
             x - tine_lo.x + amplitude
         };
-        let mut times = Vec::new();
-        let mut values = Vec::new();
-        for cycle in phases.chunks(3) {
-            let [pen, out] = [&cycle[0], &cycle[2]];
-            trapezoid(
-                &mut times,
-                &mut values,
-                pen.start,
-                pen.end,
-                ramp,
-                Vector3::new(0.0, 0.0, -spec.penetration_speed.si()),
-            );
-            trapezoid(
-                &mut times,
-                &mut values,
-                out.start,
-                out.end,
-                ramp,
-                Vector3::new(0.0, 0.0, spec.withdraw_speed.si()),
-            );
-        }
-        let table = VelocityTable::new(times, values).map_err(|e| invalid("squeeze_time", e))?;
+        // Down, across and up are set step by step (TampingMonitor::actuate).
         let prescribed = Prescribed {
             amplitude: Vector3::new(sign * amplitude, 0.0, 0.0),
             frequency: spec.frequency.si(),
             ..Prescribed::default()
-        }
-        .with_table(table);
+        };
         // Room on the far side: the container's wall or the neighbouring sleeper.
         let neighbour = if sign > 0.0 {
             number.checked_sub(2)
@@ -567,6 +563,14 @@ pub fn build(
         squeeze_speed: squeeze / t_squeeze,
         squeeze_travel: squeeze,
         squeeze_force: spec.squeeze_force.si(),
+        penetration_speed: spec.penetration_speed.si(),
+        penetration_depth: depth,
+        penetration_force: spec.penetration_force.map_or(f64::INFINITY, |f| f.si()),
+        response_time: if spec.frequency.si() > 0.0 {
+            1.0 / spec.frequency.si()
+        } else {
+            t_squeeze
+        },
     })
 }
 
@@ -633,8 +637,14 @@ pub struct TampingState {
     pub squeeze_samples: usize,
     /// Each tine's travel towards the sleeper so far (m).
     pub travel: Vec<f64>,
-    /// Each tine's squeezing force in the last step (N).
+    /// Each tine's squeezing force, averaged over the response time (N).
     pub last_force: Vec<f64>,
+    /// Each tine's descent so far (m).
+    pub descent: Vec<f64>,
+    /// The upward force of the ballast on each tine, averaged likewise (N).
+    pub last_lift: Vec<f64>,
+    /// Each tine's largest descent and largest travel so far (m).
+    pub reached: Vec<[f64; 2]>,
 }
 
 impl TampingMonitor {
@@ -654,37 +664,55 @@ impl TampingMonitor {
                 squeeze_samples: 0,
                 travel: vec![0.0; tines],
                 last_force: vec![0.0; tines],
+                descent: vec![0.0; tines],
+                last_lift: vec![0.0; tines],
+                reached: vec![[0.0; 2]; tines],
             },
         }
     }
 
-    /// Sets the tines' squeeze velocity for the step from `time` to `time + dt`, the
-    /// squeezing cylinder's law: while squeezing, a tine advances at the squeeze speed
-    /// as long as the ballast pushed back less than the cylinder's force in the last
-    /// step and its travel is below the largest; while withdrawing it goes back to its
-    /// start at an even speed over the phase's remaining steps; otherwise it holds.
-    /// The velocity is the constant part of the tine's prescribed motion, so with
-    /// θ = 1 the travel recorded here is exactly the one the step makes.
+    /// Sets the tines' velocity for the step from `time` to `time + dt`, the laws of
+    /// the unit's cylinders: while penetrating, a tine goes down at the penetration
+    /// speed as long as the ballast pushes it up with less than the penetration force
+    /// (averaged over the response time), until its tip is at the planned depth; while squeezing, it
+    /// advances at the squeeze speed as long as the ballast pushes back with less than
+    /// the squeezing force (averaged likewise), up to the largest travel; while withdrawing it goes back to
+    /// its start, up and across, evenly over the phase's remaining steps; otherwise it
+    /// holds. The velocity is the constant part of the tine's prescribed motion (the
+    /// vibration is added to it), so with θ = 1 the travel recorded here is exactly the
+    /// one the step makes.
     pub fn actuate(&mut self, time: f64, dt: f64, bodies: &mut [Body]) {
         let plan = &self.plan;
         let phase = plan.phase_at(time + 0.5 * dt);
+        let st = &mut self.state;
         for (k, tine) in plan.tines.iter().enumerate() {
-            let speed = match phase {
-                Some(p) if p.name == "squeeze" && self.state.last_force[k] < plan.squeeze_force => {
+            let (across, down) = match phase {
+                Some(p) if p.name == "penetrate" && st.last_lift[k] < plan.penetration_force => (
+                    0.0,
+                    plan.penetration_speed
+                        .min((plan.penetration_depth - st.descent[k]) / dt)
+                        .max(0.0),
+                ),
+                Some(p) if p.name == "squeeze" && st.last_force[k] < plan.squeeze_force => (
                     plan.squeeze_speed
-                        .min((plan.squeeze_travel - self.state.travel[k]) / dt)
-                        .max(0.0)
-                }
+                        .min((plan.squeeze_travel - st.travel[k]) / dt)
+                        .max(0.0),
+                    0.0,
+                ),
                 Some(p) if p.name == "withdraw" => {
-                    let left = ((p.end - time) / dt).round().max(1.0);
-                    -self.state.travel[k] / (left * dt)
+                    let left = ((p.end - time) / dt).round().max(1.0) * dt;
+                    (-st.travel[k] / left, -st.descent[k] / left)
                 }
-                _ => 0.0,
+                _ => (0.0, 0.0),
             };
-            self.state.travel[k] += speed * dt;
+            st.travel[k] += across * dt;
+            st.descent[k] += down * dt;
+            st.reached[k][0] = st.reached[k][0].max(st.descent[k]);
+            st.reached[k][1] = st.reached[k][1].max(st.travel[k]);
             for &piece in &tine.pieces {
                 if let Motion::Driven(p) = &mut bodies[piece].motion {
-                    p.velocity.x = plan.sides[k] * speed;
+                    p.velocity.x = plan.sides[k] * across;
+                    p.velocity.z = -down;
                 }
             }
         }
@@ -701,7 +729,10 @@ impl TampingMonitor {
         );
         columns.extend(["sleeper_fx_N", "sleeper_fy_N", "sleeper_fz_N"].map(String::from));
         for t in &self.plan.tines {
-            columns.extend(["fx_N", "fy_N", "fz_N", "travel_m"].map(|c| format!("{}_{c}", t.name)));
+            columns.extend(
+                ["fx_N", "fy_N", "fz_N", "travel_m", "descent_m"]
+                    .map(|c| format!("{}_{c}", t.name)),
+            );
         }
         columns
     }
@@ -749,10 +780,14 @@ impl TampingMonitor {
             let f = force_on(&t.pieces, contacts, dt);
             // The ballast resists the squeeze: along −x on the left tines, +x on the right.
             let along = -self.plan.sides[k] * f.x;
-            self.state.last_force[k] = along;
+            // The cylinders follow the push averaged over about a vibration period
+            // (hydraulics do not answer each impact of a 35 Hz vibration).
+            let w = (dt / self.plan.response_time).min(1.0);
+            self.state.last_force[k] += w * (along - self.state.last_force[k]);
             self.state.max_tine_force = self.state.max_tine_force.max(along);
             squeezing += along / self.plan.tines.len() as f64;
-            row.extend([f.x, f.y, f.z, self.state.travel[k]]);
+            self.state.last_lift[k] += w * (f.z - self.state.last_lift[k]);
+            row.extend([f.x, f.y, f.z, self.state.travel[k], self.state.descent[k]]);
         }
         if phase.as_ref().is_some_and(|p| p.name == "squeeze") {
             self.state.squeeze_force_sum += squeezing;
@@ -800,6 +835,23 @@ impl TampingMonitor {
             .collect();
         summary
             .figure("tamped_sleeper", self.plan.sleeper_number)
+            .figure("planned_descent_m", self.plan.penetration_depth)
+            .figure(
+                "tine_descent_m",
+                self.state
+                    .reached
+                    .iter()
+                    .map(|r| r[0])
+                    .collect::<Vec<f64>>(),
+            )
+            .figure(
+                "tine_travel_m",
+                self.state
+                    .reached
+                    .iter()
+                    .map(|r| r[1])
+                    .collect::<Vec<f64>>(),
+            )
             .figure("tines", self.plan.tines.len())
             .figure("compactness_before", before)
             .figure("compactness_after", after)
