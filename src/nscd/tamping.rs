@@ -16,6 +16,7 @@
 //!    [`TampingMonitor::actuate`]), up to `squeeze` of travel;
 //! 3. **withdraw**: the tines rise back and open by their travel, evenly over the time
 //!    `withdraw_speed` gives the planned depth, ending where they started.
+//!
 //! All along, the tines vibrate along x, `amplitude · sin 2πft`, the two sides in
 //! opposition (as the tine arms of a unit driven by one eccentric shaft).
 //!
