@@ -628,4 +628,23 @@ fn a_killed_tamping_run_resumes_to_the_same_state() {
         .output()
         .unwrap();
     common::assert_one_line_error(&other, 1, &["checkpoint.bin", "another scene"]);
+    // A damaged checkpoint, or none, is a one-line error too.
+    std::fs::write(&checkpoint, b"not a checkpoint").unwrap();
+    let damaged = tamping_command(&killed, &short)
+        .arg("--resume")
+        .arg(&killed)
+        .output()
+        .unwrap();
+    common::assert_one_line_error(
+        &damaged,
+        1,
+        &["checkpoint.bin", "not a ballast-nscd checkpoint"],
+    );
+    std::fs::remove_file(&checkpoint).unwrap();
+    let missing = tamping_command(&killed, &short)
+        .arg("--resume")
+        .arg(&killed)
+        .output()
+        .unwrap();
+    common::assert_one_line_error(&missing, 1, &["checkpoint.bin"]);
 }

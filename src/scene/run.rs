@@ -18,7 +18,7 @@ pub struct RunArgs {
     /// Preset to apply: a `[preset.NAME]` table of the scene file (e.g. quick, paper).
     #[arg(long, value_name = "NAME")]
     pub preset: Option<String>,
-    /// Output directory [default: results/<scene>[-<preset>]].
+    /// Output directory [default: `results/<scene>[-<preset>]`].
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
     /// Worker threads [default: all cores].
