@@ -46,6 +46,29 @@ impl Partitioning {
         Partitioning::Slabs { axis, cuts }
     }
 
+    /// `n` slabs along `axis` holding equal shares of `positions` (the contacts'
+    /// coordinates along it), cut midway between the neighbouring positions at each
+    /// share: the seed's §5 suggestion of subdomains balanced by contact count, so
+    /// that more subdomains than threads keep every thread busy. Fewer positions than
+    /// slabs give fewer slabs.
+    pub fn balanced_slabs(axis: usize, positions: &[f64], n: usize) -> Self {
+        let mut sorted: Vec<f64> = positions
+            .iter()
+            .copied()
+            .filter(|p| p.is_finite())
+            .collect();
+        sorted.sort_by(f64::total_cmp);
+        let n = n.max(1);
+        let mut cuts: Vec<f64> = (1..n)
+            .filter_map(|k| {
+                let i = k * sorted.len() / n;
+                (i > 0 && i < sorted.len()).then(|| 0.5 * (sorted[i - 1] + sorted[i]))
+            })
+            .collect();
+        cuts.dedup();
+        Partitioning::Slabs { axis, cuts }
+    }
+
     /// The number of subdomains.
     pub fn subdomains(&self) -> usize {
         match self {
@@ -151,6 +174,28 @@ pub fn decompose(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn balanced_slabs_share_the_positions_evenly() {
+        // Dense on the left: 60 positions in [0, 1), 20 in [1, 3).
+        let mut xs: Vec<f64> = (0..60).map(|k| k as f64 / 60.0).collect();
+        xs.extend((0..20).map(|k| 1.0 + 2.0 * k as f64 / 20.0));
+        let slabs = Partitioning::balanced_slabs(0, &xs, 4);
+        assert_eq!(slabs.subdomains(), 4);
+        let mut counts = [0usize; 4];
+        for &x in &xs {
+            counts[slabs.subdomain_of(&Vector3::new(x, 0.0, 0.0)) as usize] += 1;
+        }
+        assert_eq!(counts, [20, 20, 20, 20]);
+        // Even slabs over the extent would put 60 of 80 in the first two.
+        let even = Partitioning::even_slabs(0, 0.0, 3.0, 4);
+        let first = xs
+            .iter()
+            .filter(|&&x| even.subdomain_of(&Vector3::new(x, 0.0, 0.0)) == 0)
+            .count();
+        assert_eq!(first, 45);
+        assert_eq!(Partitioning::balanced_slabs(0, &[1.0], 3).subdomains(), 1);
+    }
 
     #[test]
     fn slabs_and_grids_hold_their_centres() {

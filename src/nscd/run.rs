@@ -117,7 +117,17 @@ pub fn run_with(ctx: &RunContext, resume: bool) -> Result<()> {
         } else {
             [lo[0], hi[0], lo[1], hi[1]]
         };
-        pipeline.ddm = spec.setup(extent, Partitioning::even_slabs(0, extent[0], extent[1], 2));
+        // The contacts of the initial configuration, for slabs balanced by count.
+        let contacts_x: Vec<f64> = if spec.balanced.is_some() {
+            pipeline.detect(&bodies).iter().map(|c| c.point.x).collect()
+        } else {
+            Vec::new()
+        };
+        pipeline.ddm = spec.setup(
+            extent,
+            &contacts_x,
+            Partitioning::even_slabs(0, extent[0], extent[1], 2),
+        );
     }
     let dynamic = bodies.iter().filter(|b| b.is_dynamic()).count();
     println!(

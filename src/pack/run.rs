@@ -193,7 +193,7 @@ pub fn run(ctx: &RunContext) -> Result<()> {
     };
     let ddm = d
         .ddm
-        .setup([0.0, length, -0.5 * width, 0.5 * width], per_sleeper);
+        .setup([0.0, length, -0.5 * width, 0.5 * width], &[], per_sleeper);
     let setup = DepositSetup {
         family,
         stone_density: scene.density(&scene.stones.material),

@@ -6,7 +6,8 @@
 //! driver = "synchronous"   # or "asynchronous", or "none" (plain sequential NLGS)
 //! slabs = 3                # equal slabs along x over the grains' extent, or
 //! # cuts = ["0.6 m", "1.2 m"]  # slabs along x cut at these x, or
-//! # grid = [2, 2]          # an nx × ny grid over the grains' plan extent
+//! # grid = [2, 2]          # an nx × ny grid over the grains' plan extent, or
+//! # balanced = 6           # slabs along x with equal contact counts at the start
 //! sweeps = [1, 1]          # NLGS sweeps per DDM iteration: subdomains (n), interface (m)
 //! ```
 //!
@@ -36,6 +37,9 @@ pub struct DdmSpec {
     /// An nx × ny grid in plan.
     #[serde(default)]
     pub grid: Option<[usize; 2]>,
+    /// Slabs along x with equal contact counts at the start (more than threads).
+    #[serde(default)]
+    pub balanced: Option<usize>,
     /// NLGS sweeps per DDM iteration in the subdomains and on the interface.
     #[serde(default = "one_one")]
     pub sweeps: [usize; 2],
@@ -56,6 +60,7 @@ impl Default for DdmSpec {
             slabs: None,
             cuts: None,
             grid: None,
+            balanced: None,
             sweeps: one_one(),
         }
     }
@@ -78,12 +83,16 @@ impl Validate for DdmSpec {
             self.slabs.is_some(),
             self.cuts.is_some(),
             self.grid.is_some(),
+            self.balanced.is_some(),
         ];
         v.check(
             "",
             given.iter().filter(|&&g| g).count() <= 1,
-            "give at most one of slabs, cuts or grid",
+            "give at most one of slabs, cuts, grid or balanced",
         );
+        if let Some(n) = self.balanced {
+            v.check("balanced", n >= 1, "must be at least 1");
+        }
         if let Some(n) = self.slabs {
             v.check("slabs", n >= 1, "must be at least 1");
         }
@@ -107,9 +116,15 @@ impl Validate for DdmSpec {
 
 impl DdmSpec {
     /// The DDM of the solve, or `None` for driver "none". `extent` is the grains' plan
-    /// box `[x_min, x_max, y_min, y_max]` (for `slabs` and `grid`); `default` the
-    /// partition when the table names none.
-    pub fn setup(&self, extent: [f64; 4], default: Partitioning) -> Option<DdmSetup> {
+    /// box `[x_min, x_max, y_min, y_max]` (for `slabs` and `grid`); `contacts_x` the
+    /// x of the contacts at the start (for `balanced`; without any, `balanced` gives
+    /// even slabs); `default` the partition when the table names none.
+    pub fn setup(
+        &self,
+        extent: [f64; 4],
+        contacts_x: &[f64],
+        default: Partitioning,
+    ) -> Option<DdmSetup> {
         let driver = match self.driver.as_str() {
             "asynchronous" => Driver::Asynchronous,
             "none" => return None,
@@ -121,6 +136,12 @@ impl DdmSpec {
             Partitioning::Slabs {
                 axis: 0,
                 cuts: cuts.iter().map(|c| c.si()).collect(),
+            }
+        } else if let Some(n) = self.balanced {
+            if contacts_x.is_empty() {
+                Partitioning::even_slabs(0, extent[0], extent[1], n)
+            } else {
+                Partitioning::balanced_slabs(0, contacts_x, n)
             }
         } else if let Some([nx, ny]) = self.grid {
             Partitioning::Grid {
