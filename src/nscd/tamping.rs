@@ -578,15 +578,21 @@ pub fn build(
 /// Σ volume(stone ∩ box) / volume(box) for every box, over the dynamic bodies that are
 /// not sleepers (exact clipping, [`convex_volume_in_box`]).
 pub fn stone_compactness(bodies: &[Body], boxes: &[(String, ControlBox)]) -> Vec<f64> {
+    use rayon::prelude::*;
+    let stones: Vec<&Body> = bodies
+        .iter()
+        .filter(|b| b.is_dynamic() && !b.name.starts_with("sleeper_"))
+        .collect();
     boxes
         .iter()
         .map(|(_, bx)| {
-            let solid: f64 = bodies
-                .iter()
-                .filter(|b| b.is_dynamic() && !b.name.starts_with("sleeper_"))
+            // Per-stone shares in parallel, summed in stone order: the same sum on any
+            // number of threads.
+            let shares: Vec<f64> = stones
+                .par_iter()
                 .map(|b| convex_volume_in_box(&b.shape.vertices, &b.shape.triangles, &b.pose(), bx))
-                .sum();
-            solid / bx.volume()
+                .collect();
+            shares.iter().sum::<f64>() / bx.volume()
         })
         .collect()
 }
