@@ -216,22 +216,6 @@ pub fn run_with(ctx: &RunContext, resume: bool) -> Result<()> {
             c.time
         );
     }
-    let capture = |step: u64,
-                   time: f64,
-                   frames: usize,
-                   bodies: &[Body],
-                   pipeline: &MoreauJean,
-                   extra: LoopState| {
-        Checkpoint::capture(
-            scene_text.clone(),
-            step,
-            time,
-            frames,
-            bodies,
-            pipeline.memory(),
-            extra,
-        )
-    };
     let bar = ProgressBar::with_draw_target(Some(steps), ProgressDrawTarget::stderr_with_hz(4));
     bar.set_style(
         ProgressStyle::with_template("{bar:40} {pos}/{len} steps, {per_sec}, eta {eta}")
@@ -311,8 +295,16 @@ pub fn run_with(ctx: &RunContext, resume: bool) -> Result<()> {
                 pushes: pushes.clone(),
                 tamping: tamping.as_ref().map(|(m, _)| m.state.clone()),
             };
-            capture(step, time, outputs.frames, &bodies, &pipeline, state)
-                .write(&checkpoint_path)?;
+            Checkpoint::capture(
+                scene_text.clone(),
+                step,
+                time,
+                outputs.frames,
+                &bodies,
+                pipeline.memory(),
+                state,
+            )
+            .write(&checkpoint_path)?;
             timer.add("checkpoints", clock.elapsed());
         }
         if !report.kinetic_energy.is_finite() {
@@ -566,9 +558,7 @@ impl PushCheck {
         let mut impulse = Vector3::zeros();
         for c in contacts {
             let (a, b) = (c.contact.key.body_a as usize, c.contact.key.body_b as usize);
-            // The impulse acts on the second body along +world, on the first along −world.
-            let world =
-                c.frame[0] * c.impulse[0] + c.frame[1] * c.impulse[1] + c.frame[2] * c.impulse[2];
+            let world = c.world_impulse();
             if b == self.pushed && self.pieces.contains(&a) {
                 impulse += world;
             } else if a == self.pushed && self.pieces.contains(&b) {

@@ -94,6 +94,16 @@ pub struct SolvedContact {
     pub impulse: [f64; 3],
 }
 
+impl SolvedContact {
+    /// The impulse in world axes (N·s): it acts on the second body along +world and
+    /// on the first along −world.
+    pub fn world_impulse(&self) -> Vector3<f64> {
+        self.frame[0] * self.impulse[0]
+            + self.frame[1] * self.impulse[1]
+            + self.frame[2] * self.impulse[2]
+    }
+}
+
 /// What one step did.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StepReport {

@@ -48,7 +48,7 @@ use super::body::{Body, BodyShape, Motion, Prescribed};
 use super::motion::{mesh_pieces, Pieces, VelocityTable};
 use super::scene::DrivenBody;
 use super::step::SolvedContact;
-use crate::geometry::{convex_volume_in_box, ControlBox};
+use crate::geometry::ControlBox;
 use crate::pack::Packing;
 use crate::scene::{Frequency, Length, Time, Validate, Validator, Velocity};
 use crate::{Error, Result};
@@ -578,22 +578,13 @@ pub fn build(
 /// Σ volume(stone ∩ box) / volume(box) for every box, over the dynamic bodies that are
 /// not sleepers (exact clipping, [`convex_volume_in_box`]).
 pub fn stone_compactness(bodies: &[Body], boxes: &[(String, ControlBox)]) -> Vec<f64> {
-    use rayon::prelude::*;
     let stones: Vec<&Body> = bodies
         .iter()
         .filter(|b| b.is_dynamic() && !b.name.starts_with("sleeper_"))
         .collect();
     boxes
         .iter()
-        .map(|(_, bx)| {
-            // Per-stone shares in parallel, summed in stone order: the same sum on any
-            // number of threads.
-            let shares: Vec<f64> = stones
-                .par_iter()
-                .map(|b| convex_volume_in_box(&b.shape.vertices, &b.shape.triangles, &b.pose(), bx))
-                .collect();
-            shares.iter().sum::<f64>() / bx.volume()
-        })
+        .map(|(_, bx)| crate::pack::report::solid_fraction(&stones, bx))
         .collect()
 }
 
@@ -603,9 +594,7 @@ pub fn force_on(pieces: &[usize], contacts: &[SolvedContact], dt: f64) -> Vector
     let mut impulse = Vector3::zeros();
     for c in contacts {
         let (a, b) = (c.contact.key.body_a as usize, c.contact.key.body_b as usize);
-        // The impulse acts on the second body along +world, on the first along −world.
-        let world =
-            c.frame[0] * c.impulse[0] + c.frame[1] * c.impulse[1] + c.frame[2] * c.impulse[2];
+        let world = c.world_impulse();
         if pieces.contains(&b) {
             impulse += world;
         }

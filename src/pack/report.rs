@@ -74,24 +74,32 @@ pub fn compactness(
     roles: &[Role],
     boxes: &[(String, ControlBox)],
 ) -> Vec<Compactness> {
+    let stones: Vec<&Body> = bodies
+        .iter()
+        .zip(roles)
+        .filter(|(_, r)| matches!(r, Role::Stone(_)))
+        .map(|(b, _)| b)
+        .collect();
     boxes
         .iter()
-        .map(|(name, bx)| {
-            let solid: f64 = bodies
-                .iter()
-                .zip(roles)
-                .filter(|(_, r)| matches!(r, Role::Stone(_)))
-                .map(|(b, _)| {
-                    convex_volume_in_box(&b.shape.vertices, &b.shape.triangles, &b.pose(), bx)
-                })
-                .sum();
-            Compactness {
-                name: name.clone(),
-                bx: *bx,
-                value: solid / bx.volume(),
-            }
+        .map(|(name, bx)| Compactness {
+            name: name.clone(),
+            bx: *bx,
+            value: solid_fraction(&stones, bx),
         })
         .collect()
+}
+
+/// Σ volume(stone ∩ `bx`) / volume(`bx`) over `stones`, exactly
+/// ([`convex_volume_in_box`]). The stones' shares are computed in parallel and summed
+/// in order, so the value does not depend on the thread count.
+pub fn solid_fraction(stones: &[&Body], bx: &ControlBox) -> f64 {
+    use rayon::prelude::*;
+    let shares: Vec<f64> = stones
+        .par_iter()
+        .map(|b| convex_volume_in_box(&b.shape.vertices, &b.shape.triangles, &b.pose(), bx))
+        .collect();
+    shares.iter().sum::<f64>() / bx.volume()
 }
 
 /// Mean number of contacting neighbours per stone, 2 P / N with P the stone–stone
