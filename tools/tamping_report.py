@@ -17,6 +17,7 @@ import json
 import os
 import subprocess
 import sys
+import tempfile
 
 # Seed 000 Table 3 (minutes): version -> (cores, total, detection, NLGS, other).
 SEED_TABLE3 = {
@@ -102,20 +103,20 @@ def phase_minutes(summary):
 
 def bench(nscd, preset, steps, out):
     os.makedirs(out, exist_ok=True)
+    # The preset's step, from the summary of a one-step run (the same for every version).
+    with tempfile.TemporaryDirectory() as probe:
+        subprocess.run([nscd, "scenes/tamping.toml", "--preset", preset, "--out", probe,
+                        "--set", "output.frames=0", "--set", "output.checkpoint_every=0",
+                        "--set", "time.duration=1e-9"],
+                       check=True, stdout=subprocess.DEVNULL)
+        with open(os.path.join(probe, "summary.json")) as f:
+            dt = json.load(f)["figures"]["dt_s"]
     results = {}
     for version, (name, driver, threads) in VERSIONS.items():
         d = os.path.join(out, "version-%d" % version)
-        base = [nscd, "scenes/tamping.toml", "--preset", preset, "--out", d,
-                "--threads", str(threads), "--set", "ddm.driver=\"%s\"" % driver,
-                "--set", "output.frames=2"]
-        # The preset's step, from a dry read of its summary after a 1-step run.
-        probe = base[:]
-        probe[probe.index("--out") + 1] = d + "-probe"
-        subprocess.run(probe + ["--set", "time.duration=1e-9"], check=True,
-                       stdout=subprocess.DEVNULL)
-        with open(os.path.join(d + "-probe", "summary.json")) as f:
-            dt = json.load(f)["figures"]["dt_s"]
-        cmd = base + ["--set", "time.duration=%r" % (steps * dt)]
+        cmd = [nscd, "scenes/tamping.toml", "--preset", preset, "--out", d,
+               "--threads", str(threads), "--set", "ddm.driver=\"%s\"" % driver,
+               "--set", "output.frames=2", "--set", "time.duration=%r" % (steps * dt)]
         print("tamping_report:", " ".join(cmd), file=sys.stderr, flush=True)
         subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
         with open(os.path.join(d, "summary.json")) as f:

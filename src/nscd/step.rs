@@ -407,7 +407,12 @@ impl MoreauJean {
         let (mut pen_sum, mut active) = (0.0, 0usize);
         self.solved.clear();
         for ((c, row), r) in self.points.iter().zip(&self.rows).zip(&self.impulses) {
-            let world = row.frame[0] * r[0] + row.frame[1] * r[1] + row.frame[2] * r[2];
+            let solved = SolvedContact {
+                contact: *c,
+                frame: row.frame,
+                impulse: *r,
+            };
+            let world = solved.world_impulse();
             let (a, b) = (c.key.body_a as usize, c.key.body_b as usize);
             if matches!(bodies[a].motion, Motion::Driven(_)) {
                 external_work += world.dot(&bodies[a].velocity);
@@ -420,11 +425,7 @@ impl MoreauJean {
                 pen_sum += (-c.gap).max(0.0);
                 active += 1;
             }
-            self.solved.push(SolvedContact {
-                contact: *c,
-                frame: row.frame,
-                impulse: *r,
-            });
+            self.solved.push(solved);
         }
         self.memory.store(
             self.points

@@ -290,35 +290,10 @@ impl TampingPlan {
     }
 }
 
-/// Trapezoid breakpoints: from rest at `t0`, `v` from `t0 + ramp` to `t1 − ramp`, rest
-/// at `t1`; the distance covered is `|v| (t1 − t0 − ramp)`.
-fn trapezoid(
-    times: &mut Vec<f64>,
-    values: &mut Vec<Vector3<f64>>,
-    t0: f64,
-    t1: f64,
-    ramp: f64,
-    v: Vector3<f64>,
-) {
-    for (t, value) in [
-        (t0, Vector3::zeros()),
-        (t0 + ramp, v),
-        (t1 - ramp, v),
-        (t1, Vector3::zeros()),
-    ] {
-        if times.last() == Some(&t) {
-            continue;
-        }
-        times.push(t);
-        values.push(value);
-    }
-}
-
 /// Builds the `[tamping]` of a scene over the packing's bodies: turns the tamped
 /// sleeper (a dynamic body named `sleeper_K` in `bodies`) into a driven body that
 /// lifts, appends the tines (infinite-mass pieces of `tine_material`), and returns the
-/// plan. `scene_path` is for errors and the mesh path; `packing_file` for the boxes'
-/// errors.
+/// plan. `scene_path` resolves the tine mesh and names the file in errors.
 pub fn build(
     spec: &TampingSpec,
     scene_path: &Path,
@@ -339,24 +314,23 @@ pub fn build(
             format!("{number} is past the packing's {count} sleepers"),
         ));
     }
-    let sleeper_box = |k: usize| -> Result<(Point3<f64>, Point3<f64>)> {
+    let sleeper_index = |k: usize| -> Result<usize> {
         let name = format!("sleeper_{k}");
-        let body = bodies.iter().find(|b| b.name == name).ok_or_else(|| {
+        bodies.iter().position(|b| b.name == name).ok_or_else(|| {
             invalid(
                 "sleeper",
                 "the packing's sleepers are not in the scene (give packing.sleeper_material)"
                     .into(),
             )
-        })?;
-        Ok(crate::pack::deposit::bounds(&body.world_vertices()))
+        })
     };
-    let sleepers: Vec<(Point3<f64>, Point3<f64>)> =
-        (1..=count).map(sleeper_box).collect::<Result<_>>()?;
-    let (lo, hi) = sleepers[number - 1];
-    let index = bodies
+    let indices: Vec<usize> = (1..=count).map(sleeper_index).collect::<Result<_>>()?;
+    let sleepers: Vec<(Point3<f64>, Point3<f64>)> = indices
         .iter()
-        .position(|b| b.name == format!("sleeper_{number}"))
-        .expect("found above");
+        .map(|&i| crate::pack::deposit::bounds(&bodies[i].world_vertices()))
+        .collect();
+    let (lo, hi) = sleepers[number - 1];
+    let index = indices[number - 1];
 
     // Timeline.
     let ramp = spec.ramp.si();
@@ -494,16 +468,12 @@ pub fn build(
     let lift = spec.lift.si();
     let old = &bodies[index];
     let motion = if lift > 0.0 {
-        let (mut times, mut values) = (Vec::new(), Vec::new());
-        let first = &phases[0];
-        trapezoid(
-            &mut times,
-            &mut values,
-            first.start,
-            first.end,
-            ramp,
-            Vector3::new(0.0, 0.0, lift / (t_pen - ramp)),
-        );
+        // A trapezoid: from rest, up at v between the ramps, rest at the end; it rises
+        // by v (t_pen − ramp) = lift.
+        let (t0, t1) = (phases[0].start, phases[0].end);
+        let v = Vector3::new(0.0, 0.0, lift / (t_pen - ramp));
+        let times = vec![t0, t0 + ramp, t1 - ramp, t1];
+        let values = vec![Vector3::zeros(), v, v, Vector3::zeros()];
         Motion::Driven(
             Prescribed::default()
                 .with_table(VelocityTable::new(times, values).map_err(|e| invalid("lift", e))?),
