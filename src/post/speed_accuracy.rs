@@ -14,6 +14,7 @@ use std::path::{Path, PathBuf};
 use plotters::prelude::*;
 use serde_json::Value;
 
+use super::chart::{write_svg_png, Figure, PALETTE};
 use crate::scene::Density;
 use crate::{Error, Result};
 
@@ -277,55 +278,30 @@ pub fn table(points: &[RunPoint]) -> String {
     out
 }
 
-const FONT_FILE: &str = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf";
-
-fn register_font() -> Result<()> {
-    static DONE: std::sync::OnceLock<std::result::Result<(), String>> = std::sync::OnceLock::new();
-    DONE.get_or_init(|| {
-        let bytes = std::fs::read(FONT_FILE).map_err(|e| {
-            format!("{FONT_FILE}: {e} (install Debian's fonts-dejavu-core: `make setup` does)")
-        })?;
-        let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
-        plotters::style::register_font("sans-serif", FontStyle::Normal, bytes)
-            .map_err(|_| format!("{FONT_FILE}: not a TrueType font"))
-    })
-    .clone()
-    .map_err(Error::Message)
-}
-
 /// Draws the 2 × 2 chart (error vs wall time, error vs h; deflection and frequency) to
 /// `PREFIX.svg` and `PREFIX.png`.
 pub fn draw(points: &[RunPoint], prefix: &Path) -> Result<Vec<PathBuf>> {
-    register_font()?;
-    let svg = prefix.with_extension("svg");
-    let png = prefix.with_extension("png");
-    draw_on(
-        SVGBackend::new(&svg, (1200, 900)).into_drawing_area(),
-        points,
-    )
-    .map_err(|e| Error::invalid(&svg, e))?;
-    draw_on(
-        BitMapBackend::new(&png, (1200, 900)).into_drawing_area(),
-        points,
-    )
-    .map_err(|e| Error::invalid(&png, e))?;
-    Ok(vec![svg, png])
+    write_svg_png(&SpeedAccuracyChart(points), prefix, (1200, 900))
+}
+
+struct SpeedAccuracyChart<'a>(&'a [RunPoint]);
+
+impl Figure for SpeedAccuracyChart<'_> {
+    fn draw<DB: DrawingBackend>(
+        &self,
+        root: &DrawingArea<DB, plotters::coord::Shift>,
+    ) -> std::result::Result<(), String> {
+        draw_on(root, self.0)
+    }
 }
 
 fn draw_on<DB: DrawingBackend>(
-    root: DrawingArea<DB, plotters::coord::Shift>,
+    root: &DrawingArea<DB, plotters::coord::Shift>,
     points: &[RunPoint],
 ) -> std::result::Result<(), String> {
     let err = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
-    root.fill(&WHITE).map_err(err)?;
     let panels = root.split_evenly((2, 2));
-    let palette = [
-        RGBColor(0, 0, 0),
-        RGBColor(31, 119, 180),
-        RGBColor(214, 39, 40),
-        RGBColor(44, 160, 44),
-        RGBColor(148, 103, 189),
-    ];
+    let palette = &PALETTE[..5];
     for (row, quantity) in [Quantity::Deflection, Quantity::Frequency]
         .into_iter()
         .enumerate()
@@ -400,7 +376,6 @@ fn draw_on<DB: DrawingBackend>(
                 .map_err(err)?;
         }
     }
-    root.present().map_err(err)?;
     Ok(())
 }
 
