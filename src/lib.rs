@@ -11,6 +11,7 @@
 pub mod cli;
 pub mod contact;
 pub mod ddm;
+pub mod dem;
 pub mod error;
 pub mod fc3d;
 pub mod fem;
@@ -24,5 +25,6 @@ pub mod qdem;
 pub mod scene;
 pub mod signal;
 pub mod solid;
+pub mod track;
 
 pub use error::{Error, Result};

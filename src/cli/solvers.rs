@@ -118,6 +118,9 @@ pub struct QdemCli {
 /// Runs `ballast-qdem`.
 pub fn run_qdem(cli: QdemCli) -> crate::Result<()> {
     let ctx = cli.run.context()?;
+    if crate::track::is_track_scene(&ctx.scene_path) {
+        return crate::track::run(&ctx, cli.force);
+    }
     crate::solid::qdem_run::run(&ctx, cli.force)
 }
 

@@ -14,7 +14,7 @@
 /// The strain energy is Σ V_0 (λ/2 (tr ε)² + µ ε:ε) with ε = (B − I)/2: the potential
 /// of the paper's Hooke law at small strain. Eq. 2 applied to a finite strain is not
 /// exactly hyperelastic, so at strains ε the balance also carries an O(ε) relative term.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Energies {
     /// ½ Σ m v² at the current step.
     pub kinetic: f64,
@@ -27,8 +27,11 @@ pub struct Energies {
     /// Energy removed by the numerical damping option (mass-proportional damping or the
     /// kinetic-energy resets of dynamic relaxation).
     pub damping_dissipated: f64,
-    /// ∫ Σ f_ext · v dt: work of the group loads and of gravity.
+    /// ∫ Σ f_ext · v dt: work of the group loads, of gravity and of a caller's force
+    /// hook (contacts).
     pub external_work: f64,
+    /// The part of `external_work` done by the force hook ([`super::QdemSolver::step_with`]).
+    pub hook_work: f64,
     /// kinetic − verlet_correction + strain at the start of the run.
     pub initial: f64,
 }

@@ -67,7 +67,7 @@ impl Default for QdemOptions {
 }
 
 /// The state of a body: positions, velocities, accelerations at time `time`.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct State {
     /// Time (s).
     pub time: f64,
@@ -158,7 +158,16 @@ pub struct QdemSolver<'m> {
     energy_floor: f64,
     element_partials: Vec<ElementSums>,
     node_partials: Vec<NodeSums>,
+    /// Forces of the caller's hook ([`QdemSolver::step_with`]) at the last and the
+    /// current evaluation, for the trapezoidal work of those forces.
+    hook_forces: Vec<Vec3>,
+    hook_previous: Vec<Vec3>,
 }
+
+/// Nodal forces a caller adds to the internal ones every step (e.g. contacts):
+/// `hook(time, positions, velocities, forces)` with the drifted positions x_{n+1} and
+/// the half-step velocities v_{n+½} (v_0 when priming), adding into `forces` (zeroed).
+pub type ForceHook<'h> = dyn FnMut(f64, &[Vec3], &[Vec3], &mut [Vec3]) + 'h;
 
 impl<'m> QdemSolver<'m> {
     /// Checks the boundary conditions and the time step `dt` (s) against the model.
@@ -212,12 +221,28 @@ impl<'m> QdemSolver<'m> {
             energy_floor: 0.5e-24 * model.modulus_volume(),
             element_partials: vec![ElementSums::default(); model.colouring.blocks.len()],
             node_partials: vec![NodeSums::default(); n.div_ceil(NODE_CHUNK)],
+            hook_forces: Vec::new(),
+            hook_previous: Vec::new(),
         })
     }
 
     /// The time step (s).
     pub fn dt(&self) -> f64 {
         self.dt
+    }
+
+    /// Changes the numerical damping between steps (e.g. damped settling, then the
+    /// undamped run); the same checks as at construction.
+    pub fn set_damping(&mut self, damping: Damping) -> Result<()> {
+        if let Damping::MassProportional { rate } = damping {
+            if !(rate.is_finite() && rate >= 0.0 && rate * self.dt < 1.0) {
+                return Err(Error::Message(format!(
+                    "QDEM: mass-proportional damping rate {rate} 1/s must be ≥ 0 with rate × dt < 1"
+                )));
+            }
+        }
+        self.options.damping = damping;
+        Ok(())
     }
 
     /// The model.
@@ -228,6 +253,15 @@ impl<'m> QdemSolver<'m> {
     /// Computes the accelerations and energies of a fresh state (done by the first
     /// [`Self::step`] if not called); zeroes velocities in fixed directions.
     pub fn prime(&mut self, state: &mut State) -> Result<()> {
+        self.prime_with(state, None)
+    }
+
+    /// [`Self::prime`] with a force hook (see [`ForceHook`]).
+    pub fn prime_with(
+        &mut self,
+        state: &mut State,
+        hook: Option<&mut ForceHook<'_>>,
+    ) -> Result<()> {
         let n = self.model.node_count();
         if state.positions.len() != n || state.velocities.len() != n {
             return Err(Error::Message(format!(
@@ -243,7 +277,7 @@ impl<'m> QdemSolver<'m> {
                 }
             }
         }
-        let totals = self.forces_and_accelerations(state, 0.0);
+        let (totals, _) = self.forces_and_accelerations(state, 0.0, hook);
         let sums = self.node_partials.iter().fold(NodeSums::default(), merge);
         let verlet_correction = self.dt * self.dt / 8.0 * sums.acceleration_squared;
         state.energies = Energies {
@@ -261,8 +295,18 @@ impl<'m> QdemSolver<'m> {
 
     /// Advances `state` by one step dt.
     pub fn step(&mut self, state: &mut State) -> Result<()> {
+        self.step_with(state, None)
+    }
+
+    /// [`Self::step`] with nodal forces added by `hook` after the drift (contacts with
+    /// other bodies): their work, ½(f_n + f_{n+1})·Δx, is counted as external work.
+    pub fn step_with(
+        &mut self,
+        state: &mut State,
+        mut hook: Option<&mut ForceHook<'_>>,
+    ) -> Result<()> {
         if !state.primed {
-            self.prime(state)?;
+            self.prime_with(state, hook.as_deref_mut())?;
         }
         let dt = self.dt;
         let half = 0.5 * dt;
@@ -315,7 +359,7 @@ impl<'m> QdemSolver<'m> {
         let t_new = state.time + dt;
         let load_work = self.load_work(state, t_new);
         // Phases 2 and 3.
-        let totals = self.forces_and_accelerations(state, t_new);
+        let (totals, hook_work) = self.forces_and_accelerations(state, t_new, hook);
         let phase3 = self.node_partials.iter().fold(NodeSums::default(), merge);
         state.time = t_new;
         state.step += 1;
@@ -326,7 +370,8 @@ impl<'m> QdemSolver<'m> {
         e.strain = totals.strain_energy;
         e.viscous_dissipated += dt * totals.dissipation_rate;
         e.damping_dissipated += phase1.damping_work;
-        e.external_work += phase1.gravity_work + load_work;
+        e.external_work += phase1.gravity_work + load_work + hook_work;
+        e.hook_work += hook_work;
         if self.options.damping == Damping::KineticPeak && e.kinetic < previous_kinetic {
             e.damping_dissipated += e.kinetic;
             e.kinetic = 0.0;
@@ -382,7 +427,13 @@ impl<'m> QdemSolver<'m> {
     /// Internal forces at (x, v), loads at `time`, then accelerations and the second
     /// half kick (velocities are the half-step ones on entry when stepping; on priming
     /// dt/2 kick is skipped). Node sums land in `node_partials`.
-    fn forces_and_accelerations(&mut self, state: &mut State, time: f64) -> ElementTotals {
+    /// Returns the element totals and the work of the hook's forces over the step.
+    fn forces_and_accelerations(
+        &mut self,
+        state: &mut State,
+        time: f64,
+        hook: Option<&mut ForceHook<'_>>,
+    ) -> (ElementTotals, f64) {
         let totals = self.model.internal_forces_with(
             &state.positions,
             &state.velocities,
@@ -403,6 +454,10 @@ impl<'m> QdemSolver<'m> {
                 f[2] += per_node.z;
             }
         }
+        let hook_work = match hook {
+            Some(hook) => self.add_hook_forces(state, time, hook),
+            None => 0.0,
+        };
         let half = if state.primed { 0.5 * self.dt } else { 0.0 };
         let masses = self.model.node_masses();
         let (g, rate) = (self.gravity, self.damping_rate());
@@ -451,7 +506,40 @@ impl<'m> QdemSolver<'m> {
                 .enumerate()
                 .for_each(kick);
         }
-        totals
+        (totals, hook_work)
+    }
+
+    /// Calls the hook, adds its forces, and returns their trapezoidal work over the
+    /// step just drifted (0 when priming).
+    fn add_hook_forces(&mut self, state: &State, time: f64, hook: &mut ForceHook<'_>) -> f64 {
+        let n = self.model.node_count();
+        std::mem::swap(&mut self.hook_forces, &mut self.hook_previous);
+        self.hook_forces.clear();
+        self.hook_forces.resize(n, [0.0; 3]);
+        hook(
+            time,
+            &state.positions,
+            &state.velocities,
+            &mut self.hook_forces,
+        );
+        let primed = state.primed && self.hook_previous.len() == n;
+        let dt2 = self.dt * self.dt;
+        let mut work = 0.0;
+        for i in 0..n {
+            let f = self.hook_forces[i];
+            let m = self.model.node_masses()[i];
+            let mut f2 = 0.0;
+            for d in 0..3 {
+                if primed {
+                    let mean = 0.5 * (f[d] + self.hook_previous[i][d]);
+                    work += mean * self.dt * state.velocities[i][d];
+                }
+                self.forces[i][d] += f[d];
+                f2 += f[d] * f[d];
+            }
+            self.pending_energy += 0.5 * dt2 * f2 / m;
+        }
+        work
     }
 
     /// Stops a run that has blown up, naming the stable time step.

@@ -182,12 +182,17 @@ pub fn apply_preset(
 }
 
 /// Deep merge: tables merge key by key, recursively; any other value of `over`
-/// replaces the one in `base` (arrays are replaced whole).
+/// replaces the one in `base` (arrays are replaced whole). An empty table `{ }` over a
+/// value that is not a table removes the key: how a preset unsets a base value (e.g.
+/// `sleepers.size = { }` where the preset gives `sleepers.mesh` instead).
 pub fn merge_tables(base: &mut toml::Table, over: toml::Table) {
     for (key, value) in over {
         match (base.get_mut(&key), value) {
             (Some(toml::Value::Table(base_table)), toml::Value::Table(over_table)) => {
                 merge_tables(base_table, over_table)
+            }
+            (Some(_), toml::Value::Table(over_table)) if over_table.is_empty() => {
+                base.remove(&key);
             }
             (_, value) => {
                 base.insert(key, value);
@@ -334,6 +339,14 @@ mod tests {
             base,
             table("a = 1\nb = 2\n[t]\nx = 1\ny = [3]\n[t.u]\nz = 5\nw = 2\n[new]\nk = 1\n")
         );
+    }
+
+    #[test]
+    fn an_empty_table_unsets_a_value() {
+        let mut base = table("a = 1\nb = [1, 2]\n[t]\nx = 1\n");
+        merge_tables(&mut base, table("a = {}\nb = {}\nc = {}\n[t]\n"));
+        // a and b removed; an empty table where there was nothing (c) or a table (t) stays.
+        assert_eq!(base, table("c = {}\n[t]\nx = 1\n"));
     }
 
     #[test]

@@ -1,0 +1,680 @@
+//! A multi-body system of seed 004 §4: deformable QDEM bodies (all merged into one
+//! [`QdemModel`], each keeping its own nodes) and rigid bodies, all carrying vertex
+//! spheres that touch spheres of other bodies and fixed planes.
+//!
+//! One step (kick–drift–kick for everything, seed 004 §2.4):
+//! 1. rigid bodies: half kick with the last forces, drift;
+//! 2. QDEM bodies: [`QdemSolver::step_with`], whose force hook gathers every sphere's
+//!    position and half-step velocity, evaluates the contacts ([`Contacts`]), adds the
+//!    node spheres' forces and sums the rigid spheres' forces into force and torque;
+//! 3. rigid bodies: second half kick with the new forces.
+//!
+//! The energy balance covers the whole system (kinetic, strain and spring energy,
+//! viscous, slider and dashpot dissipation, work of gravity and loads); a state that is
+//! no longer finite, or whose energy grows past [`BLOWUP_FACTOR`] × what was put in,
+//! stops the run with an error naming the stable time step of tetra and springs.
+
+use std::ops::Range;
+
+use nalgebra::{UnitQuaternion, Vector3};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use super::contacts::{ContactState, ContactTotals, Contacts, SphereSet};
+use super::law::cross;
+use super::rigid::{RigidShape, RigidState};
+use crate::qdem::{stability, Boundary, QdemModel, QdemOptions, QdemSolver, State};
+use crate::{Error, Result};
+
+/// The system's energy may not exceed this factor × (initial energy + most work put in).
+pub const BLOWUP_FACTOR: f64 = 10.0;
+
+/// Where a sphere sits.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SphereAt {
+    /// On node `node` of the merged QDEM model, of deformable body `body` (an index
+    /// into [`MultiBody::deformable`]), its centre offset by `inset` (reference frame)
+    /// turned with the body's best-fit rotation.
+    Node {
+        /// Node index.
+        node: u32,
+        /// Index into [`MultiBody::deformable`].
+        body: u32,
+        /// Offset of the centre from the node at t = 0 (m).
+        inset: [f64; 3],
+    },
+    /// On rigid body `body`, its `k`-th sphere.
+    Rigid {
+        /// Index among the rigid bodies.
+        body: u32,
+        /// Index among that body's spheres.
+        k: u32,
+    },
+}
+
+/// What kind of body a body is, and where its data live.
+#[derive(Debug, Clone, PartialEq)]
+pub enum BodyKind {
+    /// Nodes `nodes` of the merged QDEM model.
+    Deformable {
+        /// Node range.
+        nodes: Range<u32>,
+    },
+    /// Rigid body `index`.
+    Rigid {
+        /// Index among the rigid bodies.
+        index: u32,
+    },
+}
+
+/// The fixed description of a multi-body system.
+#[derive(Debug)]
+pub struct MultiBody {
+    /// The deformable bodies, merged (none: an all-rigid system).
+    pub model: Option<QdemModel>,
+    /// Fixes and loads on the merged model's nodes.
+    pub boundary: Boundary,
+    /// Rigid bodies' mass properties and spheres.
+    pub rigid: Vec<RigidShape>,
+    /// One entry per body, in body-id order (the spheres' owners).
+    pub bodies: Vec<BodyKind>,
+    /// Every sphere: node spheres first (ascending node), then rigid bodies' in order.
+    pub spheres: Vec<SphereAt>,
+    /// `rigid_spheres[b]`: the range of body b's spheres in `spheres`.
+    pub rigid_spheres: Vec<Range<usize>>,
+    /// The deformable bodies' node ranges (their spheres' insets turn with the
+    /// best-fit rotation of these nodes).
+    pub deformable: Vec<Range<u32>>,
+    /// Radii, owners, materials, masses, planes and laws of the spheres.
+    pub set: SphereSet,
+    /// Gravity (m/s²).
+    pub gravity: [f64; 3],
+}
+
+/// The state of the whole system (what a checkpoint stores).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MultiState {
+    /// Time (s).
+    pub time: f64,
+    /// Steps taken.
+    pub step: u64,
+    /// The merged QDEM model's state.
+    pub deformable: Option<State>,
+    /// The rigid bodies.
+    pub rigid: Vec<RigidState>,
+    /// Contact pairs and their springs.
+    pub contacts: ContactState,
+    /// System energies.
+    pub energies: SystemEnergies,
+}
+
+/// Energy terms of the whole system (J).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct SystemEnergies {
+    /// Kinetic energy of the rigid bodies.
+    pub rigid_kinetic: f64,
+    /// Work of gravity on the rigid bodies.
+    pub rigid_gravity_work: f64,
+    /// Stored contact spring energy.
+    pub spring: f64,
+    /// Dissipated by Coulomb sliders.
+    pub slip_dissipated: f64,
+    /// Dissipated by contact dashpots.
+    pub damping_dissipated: f64,
+    /// Taken from the rigid bodies by numerical damping (settling).
+    pub numerical_damping: f64,
+    /// Total energy at the start.
+    pub initial: f64,
+    /// Most external work seen so far (the blow-up bound).
+    pub most_work: f64,
+}
+
+impl MultiState {
+    /// Kinetic energy of all bodies.
+    pub fn kinetic(&self) -> f64 {
+        self.energies.rigid_kinetic + self.deformable.as_ref().map_or(0.0, |s| s.energies.kinetic)
+    }
+
+    /// Kinetic + strain + spring energy.
+    pub fn mechanical(&self) -> f64 {
+        self.kinetic()
+            + self.energies.spring
+            + self.deformable.as_ref().map_or(0.0, |s| s.energies.strain)
+    }
+
+    /// Work of gravity and loads (contact work between bodies excluded).
+    pub fn external_work(&self) -> f64 {
+        self.energies.rigid_gravity_work
+            + self
+                .deformable
+                .as_ref()
+                .map_or(0.0, |s| s.energies.external_work - s.energies.hook_work)
+    }
+
+    /// Everything dissipated.
+    pub fn dissipated(&self) -> f64 {
+        self.energies.slip_dissipated
+            + self.energies.damping_dissipated
+            + self.energies.numerical_damping
+            + self.deformable.as_ref().map_or(0.0, |s| {
+                s.energies.viscous_dissipated + s.energies.damping_dissipated
+            })
+    }
+
+    /// mechanical + dissipated − external work − initial (J): zero for exact dynamics.
+    pub fn balance_error(&self) -> f64 {
+        let verlet = self
+            .deformable
+            .as_ref()
+            .map_or(0.0, |s| s.energies.verlet_correction);
+        self.mechanical() - verlet + self.dissipated()
+            - self.external_work()
+            - self.energies.initial
+    }
+}
+
+/// The stable time step of a system: tetra and contact springs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SystemStability {
+    /// Of the tetra (Lanczos on the merged model), or ∞ without deformable bodies.
+    pub tetra: f64,
+    /// Of the contact springs: 2/ω with ω² = Σ k_n / m over the candidate pairs of the
+    /// stiffest node or rigid body (translation and rotation), times the dashpot's
+    /// (√(1+ζ²) − ζ).
+    pub contact: f64,
+}
+
+impl SystemStability {
+    /// The smaller of the two.
+    pub fn stable(&self) -> f64 {
+        self.tetra.min(self.contact)
+    }
+}
+
+/// The integrator of a [`MultiBody`].
+#[derive(Debug)]
+pub struct MultiBodySolver<'m> {
+    system: &'m MultiBody,
+    qdem: Option<QdemSolver<'m>>,
+    contacts: Contacts,
+    dt: f64,
+    sphere_x: Vec<[f64; 3]>,
+    sphere_v: Vec<[f64; 3]>,
+    sphere_f: Vec<[f64; 3]>,
+    /// Contact totals of the last evaluation.
+    pub last: ContactTotals,
+    stable: Option<SystemStability>,
+    primed: bool,
+    damping: f64,
+}
+
+impl MultiBody {
+    /// The system at rest: QDEM state in the reference configuration, rigid bodies in
+    /// their initial placements, no contacts yet.
+    pub fn at_rest(&self) -> MultiState {
+        MultiState {
+            time: 0.0,
+            step: 0,
+            deformable: self.model.as_ref().map(State::at_rest),
+            rigid: self.rigid.iter().map(RigidState::at_rest).collect(),
+            contacts: ContactState::default(),
+            energies: SystemEnergies::default(),
+        }
+    }
+
+    /// Number of tetra in the deformable bodies.
+    pub fn tet_count(&self) -> usize {
+        self.model.as_ref().map_or(0, |m| m.tet_count())
+    }
+
+    /// Total mass (kg).
+    pub fn total_mass(&self) -> f64 {
+        self.model.as_ref().map_or(0.0, |m| m.total_mass())
+            + self.rigid.iter().map(|r| r.mass).sum::<f64>()
+    }
+}
+
+impl<'m> MultiBodySolver<'m> {
+    /// A solver with step `dt` and Verlet skin `skin` (m). The time step is checked
+    /// against the stable one by [`Self::check_time_step`], not here (the contact part
+    /// needs the first neighbour list).
+    pub fn new(system: &'m MultiBody, dt: f64, skin: f64) -> Result<Self> {
+        if !(dt.is_finite() && dt > 0.0) {
+            return Err(Error::Message(format!(
+                "multi-body: time step {dt} s must be positive"
+            )));
+        }
+        let qdem = match &system.model {
+            Some(model) => Some(QdemSolver::new(
+                model,
+                &system.boundary,
+                dt,
+                QdemOptions {
+                    check_time_step: false,
+                    ..QdemOptions::default()
+                },
+            )?),
+            None => None,
+        };
+        let n = system.spheres.len();
+        Ok(MultiBodySolver {
+            system,
+            qdem,
+            contacts: Contacts::new(system.set.clone(), skin),
+            dt,
+            sphere_x: vec![[0.0; 3]; n],
+            sphere_v: vec![[0.0; 3]; n],
+            sphere_f: vec![[0.0; 3]; n],
+            last: ContactTotals::default(),
+            stable: None,
+            primed: false,
+            damping: 0.0,
+        })
+    }
+
+    /// The time step (s).
+    pub fn dt(&self) -> f64 {
+        self.dt
+    }
+
+    /// Mass-proportional numerical damping α (1/s) on every node and rigid body from
+    /// the next step on (0: none). For settling a bed before the loads: the force
+    /// −α m v vanishes at rest, so the settled state is the undamped equilibrium.
+    pub fn set_damping(&mut self, rate: f64) -> Result<()> {
+        if let Some(q) = self.qdem.as_mut() {
+            q.set_damping(if rate > 0.0 {
+                crate::qdem::Damping::MassProportional { rate }
+            } else {
+                crate::qdem::Damping::None
+            })?;
+        } else if !(rate.is_finite() && rate >= 0.0 && rate * self.dt < 1.0) {
+            return Err(Error::Message(format!(
+                "multi-body: damping rate {rate} 1/s must be ≥ 0 with rate × dt < 1"
+            )));
+        }
+        self.damping = rate;
+        Ok(())
+    }
+
+    /// Stable time steps for `state` (the contact part from its current neighbour
+    /// list; the tetra part computed once).
+    pub fn stability(&mut self, state: &mut MultiState) -> SystemStability {
+        let tetra = match (&self.stable, &self.system.model) {
+            (Some(s), _) => s.tetra,
+            (None, Some(model)) => stability(model).stable,
+            (None, None) => f64::INFINITY,
+        };
+        let deformable = state.deformable.as_ref().map(|s| s.positions.as_slice());
+        gather(
+            self.system,
+            deformable,
+            None,
+            &state.rigid,
+            &mut self.sphere_x,
+            &mut self.sphere_v,
+        );
+        self.contacts.refresh(&mut state.contacts, &self.sphere_x);
+        let contact = contact_stable_step(self.system, &state.contacts);
+        if std::env::var_os("BALLAST_DEBUG_OVERLAP").is_some() {
+            let set = &self.system.set;
+            let mut worst: Vec<(f64, u32, u32)> = state
+                .contacts
+                .pairs
+                .iter()
+                .map(|p| {
+                    let i = p.first as usize;
+                    let o = if p.second & (1 << 31) != 0 {
+                        let pl = &set.planes[(p.second & !(1 << 31)) as usize];
+                        let x = self.sphere_x[i];
+                        set.radius[i]
+                            - ((x[0] - pl.point[0]) * pl.normal[0]
+                                + (x[1] - pl.point[1]) * pl.normal[1]
+                                + (x[2] - pl.point[2]) * pl.normal[2])
+                    } else {
+                        let j = p.second as usize;
+                        let d = super::neighbours::Period::difference(
+                            set.period.as_ref(),
+                            self.sphere_x[i],
+                            self.sphere_x[j],
+                        );
+                        set.radius[i] + set.radius[j]
+                            - (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
+                    };
+                    (o, p.first, p.second)
+                })
+                .collect();
+            worst.sort_by(|a, b| b.0.total_cmp(&a.0));
+            for (o, i, j) in worst.iter().take(15) {
+                let oj = if j & (1 << 31) != 0 {
+                    format!("plane {}", j & !(1 << 31))
+                } else {
+                    format!("body {} sphere {j}", set.owner[*j as usize])
+                };
+                eprintln!(
+                    "overlap {o:.4e} m: body {} sphere {i} at {:?} with {oj}",
+                    set.owner[*i as usize], self.sphere_x[*i as usize]
+                );
+            }
+        }
+        let s = SystemStability { tetra, contact };
+        self.stable = Some(s);
+        s
+    }
+
+    /// Computes forces and energies of a fresh state.
+    pub fn prime(&mut self, state: &mut MultiState) -> Result<()> {
+        let MultiBodySolver {
+            system,
+            qdem,
+            contacts,
+            dt,
+            sphere_x,
+            sphere_v,
+            sphere_f,
+            last,
+            ..
+        } = self;
+        let MultiState {
+            deformable,
+            rigid,
+            contacts: cstate,
+            energies,
+            ..
+        } = state;
+        let mut hook = |_t: f64, x: &[[f64; 3]], v: &[[f64; 3]], f: &mut [[f64; 3]]| {
+            *last = contact_forces(
+                system, contacts, cstate, rigid, x, v, f, *dt, sphere_x, sphere_v, sphere_f,
+            );
+        };
+        match (qdem.as_mut(), deformable.as_mut()) {
+            (Some(q), Some(s)) => q.prime_with(s, Some(&mut hook))?,
+            _ => hook(0.0, &[], &[], &mut []),
+        }
+        energies.spring = last.spring_energy;
+        energies.rigid_kinetic = rigid
+            .iter()
+            .zip(&system.rigid)
+            .map(|(r, s)| r.kinetic_energy(s))
+            .sum();
+        energies.initial = state_energy(deformable.as_ref(), energies);
+        self.primed = true;
+        Ok(())
+    }
+
+    /// Advances the system by one step.
+    pub fn step(&mut self, state: &mut MultiState) -> Result<()> {
+        if !self.primed && state.step == 0 {
+            self.prime(state)?;
+        }
+        self.primed = true;
+        let MultiBodySolver {
+            system,
+            qdem,
+            contacts,
+            dt,
+            sphere_x,
+            sphere_v,
+            sphere_f,
+            last,
+            damping,
+            ..
+        } = self;
+        let (dt, damping) = (*dt, *damping);
+        let half = 0.5 * dt;
+        let g = system.gravity;
+        let MultiState {
+            deformable,
+            rigid,
+            contacts: cstate,
+            energies,
+            time,
+            step,
+        } = state;
+        let mut gravity_work = 0.0;
+        let mut damped = 0.0;
+        for (r, shape) in rigid.iter_mut().zip(&system.rigid) {
+            damped += r.kick(shape, g, half, damping);
+            r.drift(shape, dt);
+            gravity_work += shape.mass
+                * dt
+                * (g[0] * r.velocity[0] + g[1] * r.velocity[1] + g[2] * r.velocity[2]);
+        }
+        let mut hook = |_t: f64, x: &[[f64; 3]], v: &[[f64; 3]], f: &mut [[f64; 3]]| {
+            *last = contact_forces(
+                system, contacts, cstate, rigid, x, v, f, dt, sphere_x, sphere_v, sphere_f,
+            );
+        };
+        match (qdem.as_mut(), deformable.as_mut()) {
+            (Some(q), Some(s)) => q.step_with(s, Some(&mut hook))?,
+            _ => hook(*time + dt, &[], &[], &mut []),
+        }
+        let mut kinetic = 0.0;
+        let mut finite = true;
+        for (r, shape) in rigid.iter_mut().zip(&system.rigid) {
+            damped += r.kick(shape, g, half, damping);
+            kinetic += r.kinetic_energy(shape);
+            finite &= r.position.iter().chain(&r.velocity).all(|c| c.is_finite());
+        }
+        *time += dt;
+        *step += 1;
+        energies.rigid_kinetic = kinetic;
+        energies.rigid_gravity_work += gravity_work;
+        energies.spring = last.spring_energy;
+        energies.slip_dissipated += last.slip_dissipated;
+        energies.damping_dissipated += last.damping_dissipated;
+        energies.numerical_damping += damped;
+        let work = state.external_work();
+        state.energies.most_work = state.energies.most_work.max(work);
+        self.check(state, finite)
+    }
+
+    fn check(&self, state: &MultiState, finite: bool) -> Result<()> {
+        let e = state.mechanical();
+        let bound = BLOWUP_FACTOR
+            * (state.energies.initial.max(0.0) + state.energies.most_work.max(0.0))
+            + 1e-9 * self.system.total_mass();
+        let reason = if !finite || !e.is_finite() {
+            Some("the state is no longer finite (NaN or infinity)".to_string())
+        } else if e > bound {
+            Some(format!(
+                "kinetic + strain + spring energy {e:.4e} J exceeds {BLOWUP_FACTOR} × (initial \
+                 energy + work put in) = {bound:.4e} J"
+            ))
+        } else {
+            None
+        };
+        match reason {
+            None => Ok(()),
+            Some(reason) => {
+                let s = self.stable.map(|s| s.stable());
+                let stable = s.map_or("unknown".to_string(), |s| format!("{s:.4e} s"));
+                Err(Error::Message(format!(
+                    "unstable: {reason} at t = {:.6e} s (step {}); the stable time step \
+                     (tetra and contact springs) is {stable}, dt = {:.4e} s",
+                    state.time, state.step, self.dt
+                )))
+            }
+        }
+    }
+}
+
+fn state_energy(deformable: Option<&State>, e: &SystemEnergies) -> f64 {
+    e.rigid_kinetic
+        + e.spring
+        + deformable.map_or(0.0, |s| {
+            s.energies.kinetic - s.energies.verlet_correction + s.energies.strain
+        })
+}
+
+/// Sphere positions and velocities from the node arrays and the rigid states.
+fn gather(
+    system: &MultiBody,
+    x: Option<&[[f64; 3]]>,
+    v: Option<&[[f64; 3]]>,
+    rigid: &[RigidState],
+    sx: &mut [[f64; 3]],
+    sv: &mut [[f64; 3]],
+) {
+    let poses: Vec<(UnitQuaternion<f64>, Vector3<f64>)> = rigid
+        .iter()
+        .zip(&system.rigid)
+        .map(|(r, s)| (r.rotation(), r.angular_velocity(s)))
+        .collect();
+    let turns: Vec<nalgebra::Matrix3<f64>> = match (x, &system.model) {
+        (Some(x), Some(model)) if !x.is_empty() => system
+            .deformable
+            .iter()
+            .map(|r| best_fit_rotation(model, x, r.clone()))
+            .collect(),
+        _ => vec![nalgebra::Matrix3::identity(); system.deformable.len()],
+    };
+    let one = |(s, (px, pv)): (usize, (&mut [f64; 3], &mut [f64; 3]))| match system.spheres[s] {
+        SphereAt::Node { node, body, inset } => {
+            let p = x.map_or([0.0; 3], |x| x[node as usize]);
+            let o = turns[body as usize] * Vector3::from(inset);
+            *px = [p[0] + o.x, p[1] + o.y, p[2] + o.z];
+            *pv = v.map_or([0.0; 3], |v| v[node as usize]);
+        }
+        SphereAt::Rigid { body, k } => {
+            let b = body as usize;
+            let (p, vel) = rigid[b].sphere(&system.rigid[b], &poses[b].0, &poses[b].1, k as usize);
+            *px = p;
+            *pv = vel;
+        }
+    };
+    if sx.len() >= 4096 {
+        sx.par_iter_mut()
+            .zip(sv.par_iter_mut())
+            .enumerate()
+            .for_each(one);
+    } else {
+        sx.iter_mut().zip(sv.iter_mut()).enumerate().for_each(one);
+    }
+}
+
+/// The rotation R minimising Σ m |x − x̄ − R (X − X̄)|² over the nodes `range` (Kabsch:
+/// the polar factor of Σ m (x − x̄)(X − X̄)ᵀ); the identity for a body at rest.
+fn best_fit_rotation(
+    model: &QdemModel,
+    x: &[[f64; 3]],
+    range: Range<u32>,
+) -> nalgebra::Matrix3<f64> {
+    let (m, r) = (model.node_masses(), model.reference_positions());
+    let range = range.start as usize..range.end as usize;
+    let total: f64 = m[range.clone()].iter().sum();
+    let mut cx = Vector3::zeros();
+    let mut cr = Vector3::zeros();
+    for i in range.clone() {
+        cx += m[i] * Vector3::from(x[i]);
+        cr += m[i] * Vector3::from(r[i]);
+    }
+    cx /= total;
+    cr /= total;
+    let mut h = nalgebra::Matrix3::zeros();
+    for i in range {
+        h += m[i] * (Vector3::from(x[i]) - cx) * (Vector3::from(r[i]) - cr).transpose();
+    }
+    let svd = h.svd(true, true);
+    let (Some(u), Some(vt)) = (svd.u, svd.v_t) else {
+        return nalgebra::Matrix3::identity();
+    };
+    let mut d = nalgebra::Matrix3::identity();
+    if (u * vt).determinant() < 0.0 {
+        d[(2, 2)] = -1.0;
+    }
+    u * d * vt
+}
+
+/// The force hook: contacts from the drifted state, node forces added into `f`, rigid
+/// forces and torques stored in the rigid states.
+#[allow(clippy::too_many_arguments)]
+fn contact_forces(
+    system: &MultiBody,
+    contacts: &mut Contacts,
+    cstate: &mut ContactState,
+    rigid: &mut [RigidState],
+    x: &[[f64; 3]],
+    v: &[[f64; 3]],
+    f: &mut [[f64; 3]],
+    dt: f64,
+    sx: &mut [[f64; 3]],
+    sv: &mut [[f64; 3]],
+    sf: &mut [[f64; 3]],
+) -> ContactTotals {
+    gather(system, Some(x), Some(v), rigid, sx, sv);
+    let totals = contacts.evaluate(cstate, sx, sv, dt, sf);
+    for (s, at) in system.spheres.iter().enumerate() {
+        if let SphereAt::Node { node, .. } = at {
+            let fi = &mut f[*node as usize];
+            for d in 0..3 {
+                fi[d] += sf[s][d];
+            }
+        } else {
+            break;
+        }
+    }
+    for (b, range) in system.rigid_spheres.iter().enumerate() {
+        let c = rigid[b].position;
+        let mut force = [0.0; 3];
+        let mut torque = [0.0; 3];
+        for s in range.clone() {
+            let r = [sx[s][0] - c[0], sx[s][1] - c[1], sx[s][2] - c[2]];
+            let t = cross(r, sf[s]);
+            for d in 0..3 {
+                force[d] += sf[s][d];
+                torque[d] += t[d];
+            }
+        }
+        rigid[b].force = force;
+        rigid[b].torque = torque;
+    }
+    totals
+}
+
+/// 2/ω_max over nodes and rigid bodies, ω² = Σ k_n / m (and Σ k_n r² / I_min for a
+/// rigid body's rotation) over the candidate pairs, times the dashpot correction.
+fn contact_stable_step(system: &MultiBody, cstate: &ContactState) -> f64 {
+    let set = &system.set;
+    let mut stiffness = vec![0.0; system.spheres.len()];
+    let mut zeta: f64 = 0.0;
+    for p in &cstate.pairs {
+        let i = p.first as usize;
+        let (k, z) = if p.second & (1 << 31) != 0 {
+            let plane = &set.planes[(p.second & !(1 << 31)) as usize];
+            let law = set.laws[plane.material as usize * set.materials + set.material[i] as usize];
+            (law.normal_stiffness, law.damping_ratio)
+        } else {
+            let j = p.second as usize;
+            let law = set.laws[set.material[i] as usize * set.materials + set.material[j] as usize];
+            stiffness[j] += law.normal_stiffness;
+            (law.normal_stiffness, law.damping_ratio)
+        };
+        stiffness[i] += k;
+        zeta = zeta.max(z);
+    }
+    let mut omega2: f64 = 0.0;
+    let masses = system.model.as_ref().map(|m| m.node_masses());
+    for (s, at) in system.spheres.iter().enumerate() {
+        if let (SphereAt::Node { node, .. }, Some(m)) = (at, masses) {
+            omega2 = omega2.max(stiffness[s] / m[*node as usize]);
+        }
+    }
+    for (b, range) in system.rigid_spheres.iter().enumerate() {
+        let shape = &system.rigid[b];
+        let k: f64 = stiffness[range.clone()].iter().sum();
+        let i_min = shape
+            .principal_inertia
+            .iter()
+            .fold(f64::INFINITY, |a, &b| a.min(b));
+        let kr2: f64 = range
+            .clone()
+            .zip(&shape.spheres)
+            .map(|(s, r)| stiffness[s] * (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]))
+            .sum();
+        omega2 = omega2.max(k / shape.mass).max(kr2 / i_min);
+    }
+    if omega2 <= 0.0 {
+        return f64::INFINITY;
+    }
+    2.0 / omega2.sqrt() * ((1.0 + zeta * zeta).sqrt() - zeta)
+}

@@ -1,0 +1,468 @@
+//! `ballast-qdem SCENE.toml` for a scene with a `[track]` table: the sleeper on
+//! ballast under rail-seat loads (seed 004 §4).
+//!
+//! Output directory:
+//! - `sensors.csv`: `time_s`, then per sensor `NAME_u{x,y,z}_m`, `NAME_v{x,y,z}_m_per_s`,
+//!   `NAME_a{x,y,z}_m_per_s2` at the sampling rate (seed 004: 10 kHz); what
+//!   `ballast-post spectra` reads;
+//! - `track.csv`: at the same rate, the applied rail-seat loads, the sleeper's
+//!   settlement (mean vertical displacement of its bottom face), contacts, deepest
+//!   sphere overlap, and the energy terms with the balance error;
+//! - `deformable.pvd` (sleeper and deformable stones: tetra with displacement,
+//!   velocity, body, von Mises stress) and `rigid.pvd` (rigid stones' surfaces with
+//!   displacement, velocity, body);
+//! - `summary.json`: counts, stable and used steps, settlement, overlaps, energy
+//!   balance, throughput (contact pairs/s, tetra updates/s, simulated seconds per wall
+//!   hour), peak memory, wall time per phase.
+
+use std::time::Instant;
+
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use serde_json::json;
+
+use super::build::{build, SensorAt, Track};
+use super::loads::RailSeatLoads;
+use super::scene::{DtSpec, TrackScene};
+use crate::dem::{MultiBodySolver, MultiState};
+use crate::output::{write_json, CsvSeries, Grid, PvdWriter};
+use crate::pack::Packing;
+use crate::qdem::von_mises;
+use crate::scene::{PhaseTimer, RunContext, Summary};
+use crate::{Error, Result};
+
+/// Whether a scene file is a track scene (has a `[track]` table).
+pub fn is_track_scene(scene: &std::path::Path) -> bool {
+    std::fs::read_to_string(scene)
+        .ok()
+        .and_then(|t| t.parse::<toml::Table>().ok())
+        .is_some_and(|t| t.contains_key("track"))
+}
+
+/// Runs the track scene of `ctx`; `force` allows a step above the stable one.
+pub fn run(ctx: &RunContext, force: bool) -> Result<()> {
+    let threads = ctx.configure_threads()?;
+    let mut timer = PhaseTimer::new();
+    let (scene, inputs): (TrackScene, _) = timer.time("read scene", || ctx.load_scene())?;
+    let packing_path = TrackScene::resolve(&ctx.scene_path, &scene.track.packing);
+    let packing = Packing::read(&packing_path)?;
+    let loads = match &scene.track.loads {
+        Some(file) => Some(RailSeatLoads::read(&TrackScene::resolve(
+            &ctx.scene_path,
+            file,
+        ))?),
+        None => None,
+    };
+    let track = timer.time("build", || {
+        build(
+            &ctx.scene_path,
+            &scene,
+            &packing_path,
+            &packing,
+            loads.as_ref(),
+        )
+    })?;
+    std::fs::create_dir_all(&ctx.out_dir).map_err(|e| Error::io(&ctx.out_dir, e))?;
+    let sys = &track.system;
+    say(format_args!(
+        "ballast-qdem: track on {} — sleeper + {} stones ({} deformable, {} rigid), {} tetra, {} spheres, {threads} threads",
+        packing_path.display(),
+        packing.stones.len(),
+        track.deformable_stones,
+        sys.rigid.len(),
+        sys.tet_count(),
+        sys.spheres.len(),
+    ));
+
+    // Time step: the sampling period cut into whole steps.
+    let t = &scene.track;
+    let period = 1.0 / t.sample_rate.si();
+    let mut state = sys.at_rest();
+    let mut solver = MultiBodySolver::new(sys, period, t.skin.si())?;
+    let stable = timer.time("stable step", || solver.stability(&mut state));
+    let dt = match t.dt {
+        None | Some(DtSpec::Auto) => period / (period / (t.dt_factor * stable.stable())).ceil(),
+        Some(DtSpec::Fixed(dt)) => dt.si(),
+    };
+    say(format_args!(
+        "ballast-qdem: stable time step {:.4e} s (tetra {:.4e} s, contact springs {:.4e} s); dt = {dt:.4e} s",
+        stable.stable(),
+        stable.tetra,
+        stable.contact
+    ));
+    if dt > stable.stable() && !force {
+        return Err(Error::invalid(
+            &ctx.scene_path,
+            format!(
+                "track.dt = {dt:.4e} s exceeds the stable time step {:.4e} s (use dt = \"auto\", or --force)",
+                stable.stable()
+            ),
+        ));
+    }
+    let mut solver = MultiBodySolver::new(sys, dt, t.skin.si())?;
+    solver.stability(&mut state);
+    let sample_every = ((period / dt).round() as u64).max(1);
+    let settle_steps = (t.settle.si() / dt).round() as u64;
+    let total_steps = settle_steps + (t.duration.si() / dt).ceil() as u64;
+    let frame_every = (total_steps / t.frames.max(1) as u64).max(1);
+
+    let mut out = Outputs::create(ctx, &track)?;
+    let started = Instant::now();
+    let bar = progress_bar(total_steps);
+    let mut touching_sum = 0u64;
+    let mut max_overlap: f64 = 0.0;
+    out.record(&track, &state, &solver, loads.as_ref(), t.settle.si())?;
+    out.frame(&track, &state)?;
+    solver.set_damping(if settle_steps > 0 {
+        t.settle_damping.si()
+    } else {
+        0.0
+    })?;
+    let mut settled_at = 0.0;
+    let mut kinetic_after_settling = state.kinetic();
+    while state.step < total_steps {
+        if state.step == settle_steps && settle_steps > 0 {
+            solver.set_damping(0.0)?;
+            settled_at = out.settlement(&track, &state);
+            kinetic_after_settling = state.kinetic();
+            timer.add("settling", started.elapsed());
+        }
+        solver.step(&mut state)?;
+        touching_sum += (solver.last.touching + solver.last.touching_planes) as u64;
+        max_overlap = max_overlap.max(solver.last.max_overlap);
+        if state.step % sample_every == 0 {
+            out.record(&track, &state, &solver, loads.as_ref(), t.settle.si())?;
+        }
+        if state.step % frame_every == 0 || state.step == total_steps {
+            out.frame(&track, &state)?;
+        }
+        if state.step % 256 == 0 {
+            bar.set_position(state.step);
+        }
+    }
+    bar.finish_and_clear();
+    let stepping = started.elapsed().as_secs_f64() - out.frame_s;
+    timer.add("stepping", std::time::Duration::from_secs_f64(stepping));
+    timer.add("frames", std::time::Duration::from_secs_f64(out.frame_s));
+
+    let settlement = out.settlement(&track, &state) - settled_at;
+    let steps = state.step as f64;
+    let simulated = state.time;
+    let balance = state.balance_error();
+    let scale = state
+        .external_work()
+        .abs()
+        .max(state.mechanical())
+        .max(state.dissipated());
+    let summary = Summary::new(ctx, &inputs)
+        .figure("stones", packing.stones.len())
+        .figure("deformable_stones", track.deformable_stones)
+        .figure("rigid_stones", sys.rigid.len())
+        .figure("tetra", sys.tet_count())
+        .figure("spheres", sys.spheres.len())
+        .figure("stable_dt_s", stable.stable())
+        .figure("stable_dt_tetra_s", stable.tetra)
+        .figure("stable_dt_contact_s", stable.contact)
+        .figure("dt_s", dt)
+        .figure("steps", state.step)
+        .figure("simulated_s", simulated)
+        .figure("sample_rate_hz", 1.0 / (sample_every as f64 * dt))
+        .figure("sleeper_settlement_m", settlement)
+        .figure("settling_sink_m", settled_at)
+        .figure("kinetic_energy_after_settling_j", kinetic_after_settling)
+        .figure("max_overlap_m", max_overlap)
+        .figure("final_max_overlap_m", solver.last.max_overlap)
+        .figure("final_mean_overlap_m", solver.last.mean_overlap)
+        .figure("stone_size_m", track.stone_size)
+        .figure(
+            "final_contacts",
+            solver.last.touching + solver.last.touching_planes,
+        )
+        .figure("energy_balance_error_j", balance)
+        .figure(
+            "energy_balance_relative",
+            if scale > 0.0 {
+                balance.abs() / scale
+            } else {
+                0.0
+            },
+        )
+        .figure("contact_pairs_per_s", touching_sum as f64 / stepping)
+        .figure(
+            "tetra_updates_per_s",
+            steps * sys.tet_count() as f64 / stepping,
+        )
+        .figure("simulated_s_per_wall_hour", simulated / stepping * 3600.0)
+        .figure("list_rebuilds", state.contacts.rebuilds)
+        .figure("peak_memory_mib", peak_memory_mib())
+        .figure(
+            "sensors",
+            json!(track
+                .sensors
+                .iter()
+                .map(|s| s.name.clone())
+                .collect::<Vec<_>>()),
+        )
+        .wall_times(&timer);
+    write_json(ctx.out_dir.join("summary.json"), &summary.to_json())?;
+    say(format_args!(
+        "ballast-qdem: {} steps ({simulated:.4} s) in {stepping:.1} s — {:.3e} contact pairs/s, {:.3e} tetra updates/s, {:.3} simulated s per wall hour",
+        state.step,
+        touching_sum as f64 / stepping,
+        steps * sys.tet_count() as f64 / stepping,
+        simulated / stepping * 3600.0
+    ));
+    say(format_args!(
+        "ballast-qdem: sleeper settlement {:.3e} m; deepest sphere overlap {max_overlap:.3e} m; energy balance error {:.2e} of the energy scale",
+        settlement,
+        if scale > 0.0 { balance.abs() / scale } else { 0.0 }
+    ));
+    say(format_args!(
+        "wrote {}",
+        ctx.out_dir.join("summary.json").display()
+    ));
+    Ok(())
+}
+
+/// The files of a run.
+struct Outputs {
+    sensors: CsvSeries,
+    track: CsvSeries,
+    deformable: PvdWriter,
+    rigid: PvdWriter,
+    frames: usize,
+    frame_s: f64,
+}
+
+impl Outputs {
+    fn create(ctx: &RunContext, track: &Track) -> Result<Self> {
+        let mut columns = vec!["time_s".to_string()];
+        for s in &track.sensors {
+            for q in ["u", "v", "a"] {
+                let unit = match q {
+                    "u" => "m",
+                    "v" => "m_per_s",
+                    _ => "m_per_s2",
+                };
+                for c in ["x", "y", "z"] {
+                    columns.push(format!("{}_{q}{c}_{unit}", s.name));
+                }
+            }
+        }
+        let refs: Vec<&str> = columns.iter().map(String::as_str).collect();
+        let sensors = CsvSeries::create(ctx.out_dir.join("sensors.csv"), &refs)?;
+        let track_csv = CsvSeries::create(
+            ctx.out_dir.join("track.csv"),
+            &[
+                "time_s",
+                "rp1_n",
+                "rp2_n",
+                "sleeper_settlement_m",
+                "contacts",
+                "max_overlap_m",
+                "kinetic_j",
+                "strain_j",
+                "spring_j",
+                "dissipated_j",
+                "external_work_j",
+                "balance_error_j",
+            ],
+        )?;
+        std::fs::create_dir_all(ctx.out_dir.join("frames"))
+            .map_err(|e| Error::io(&ctx.out_dir, e))?;
+        Ok(Outputs {
+            sensors,
+            track: track_csv,
+            deformable: PvdWriter::create(ctx.out_dir.join("deformable.pvd"))?,
+            rigid: PvdWriter::create(ctx.out_dir.join("rigid.pvd"))?,
+            frames: 0,
+            frame_s: 0.0,
+        })
+    }
+
+    fn settlement(&self, track: &Track, state: &MultiState) -> f64 {
+        let Some(s) = &state.deformable else {
+            return 0.0;
+        };
+        let model = track.system.model.as_ref().expect("the sleeper deforms");
+        let r = model.reference_positions();
+        let n = track.sleeper_bottom.len().max(1) as f64;
+        track
+            .sleeper_bottom
+            .iter()
+            .map(|&i| s.positions[i as usize][2] - r[i as usize][2])
+            .sum::<f64>()
+            / n
+    }
+
+    fn record(
+        &mut self,
+        track: &Track,
+        state: &MultiState,
+        solver: &MultiBodySolver<'_>,
+        loads: Option<&RailSeatLoads>,
+        settle: f64,
+    ) -> Result<()> {
+        let sys = &track.system;
+        let mut row = vec![state.time];
+        let g = sys.gravity;
+        for sensor in &track.sensors {
+            let (u, v, a) = match &sensor.at {
+                SensorAt::Node(i) => {
+                    let s = state.deformable.as_ref().expect("sleeper");
+                    let r = sys.model.as_ref().expect("sleeper").reference_positions()[*i as usize];
+                    let x = s.positions[*i as usize];
+                    (
+                        [x[0] - r[0], x[1] - r[1], x[2] - r[2]],
+                        s.velocities[*i as usize],
+                        s.accelerations[*i as usize],
+                    )
+                }
+                SensorAt::DeformableStone(range) => {
+                    let s = state.deformable.as_ref().expect("deformable stone");
+                    let model = sys.model.as_ref().expect("deformable stone");
+                    let (m, r) = (model.node_masses(), model.reference_positions());
+                    let mut acc = [[0.0; 3]; 3];
+                    let mut total = 0.0;
+                    for i in range.clone().map(|i| i as usize) {
+                        total += m[i];
+                        for d in 0..3 {
+                            acc[0][d] += m[i] * (s.positions[i][d] - r[i][d]);
+                            acc[1][d] += m[i] * s.velocities[i][d];
+                            acc[2][d] += m[i] * s.accelerations[i][d];
+                        }
+                    }
+                    let mean = |v: [f64; 3]| v.map(|c| c / total);
+                    (mean(acc[0]), mean(acc[1]), mean(acc[2]))
+                }
+                SensorAt::RigidStone(b) => {
+                    let (r, shape) = (&state.rigid[*b as usize], &sys.rigid[*b as usize]);
+                    let u = [0, 1, 2].map(|d| r.position[d] - shape.centre[d]);
+                    let a = [0, 1, 2].map(|d| r.force[d] / shape.mass + g[d]);
+                    (u, r.velocity, a)
+                }
+            };
+            row.extend_from_slice(&u);
+            row.extend_from_slice(&v);
+            row.extend_from_slice(&a);
+        }
+        self.sensors.push(&row)?;
+        let (rp1, rp2) = match loads {
+            Some(l) if state.time >= settle => l.at(state.time - settle),
+            _ => (0.0, 0.0),
+        };
+        let strain = state.deformable.as_ref().map_or(0.0, |s| s.energies.strain);
+        self.track.push(&[
+            state.time,
+            rp1,
+            rp2,
+            self.settlement(track, state),
+            (solver.last.touching + solver.last.touching_planes) as f64,
+            solver.last.max_overlap,
+            state.kinetic(),
+            strain,
+            state.energies.spring,
+            state.dissipated(),
+            state.external_work(),
+            state.balance_error(),
+        ])
+    }
+
+    fn frame(&mut self, track: &Track, state: &MultiState) -> Result<()> {
+        let started = Instant::now();
+        let sys = &track.system;
+        let k = self.frames;
+        if let (Some(s), Some(model)) = (&state.deformable, &sys.model) {
+            let tets: Vec<[usize; 4]> = track.tets.iter().map(|t| t.map(|n| n as usize)).collect();
+            let mut grid = Grid::tetra(s.positions.clone(), &tets)?;
+            let r = model.reference_positions();
+            let u: Vec<f64> = s
+                .positions
+                .iter()
+                .zip(r)
+                .flat_map(|(x, r)| [x[0] - r[0], x[1] - r[1], x[2] - r[2]])
+                .collect();
+            grid.add_point_field("displacement_m", 3, u)?;
+            grid.add_point_field("velocity_m_per_s", 3, s.velocities.concat())?;
+            grid.add_cell_field(
+                "body",
+                1,
+                track.tet_body.iter().map(|&b| b as i32).collect::<Vec<_>>(),
+            )?;
+            let vm: Vec<f64> = model
+                .stresses(&s.positions, &s.velocities)
+                .iter()
+                .map(von_mises)
+                .collect();
+            grid.add_cell_field("von_mises_Pa", 1, vm)?;
+            self.deformable.write_frame(
+                state.time,
+                format!("frames/deformable_{k:04}.vtu"),
+                &grid,
+            )?;
+        }
+        // Rigid stones: their surfaces at the current pose.
+        let mut points = Vec::new();
+        let mut tris = Vec::new();
+        let mut body = Vec::new();
+        let mut disp = Vec::new();
+        let mut vel = Vec::new();
+        let rigid_ids: Vec<i32> = sys
+            .bodies
+            .iter()
+            .enumerate()
+            .filter(|(_, k)| matches!(k, crate::dem::BodyKind::Rigid { .. }))
+            .map(|(id, _)| id as i32)
+            .collect();
+        for (b, (r, shape)) in state.rigid.iter().zip(&sys.rigid).enumerate() {
+            let offset = points.len();
+            let q = r.rotation();
+            let w = r.angular_velocity(shape);
+            for local in &track.rigid_vertices[b] {
+                let p = q.transform_vector(&nalgebra::Vector3::from(*local));
+                points.push([
+                    r.position[0] + p.x,
+                    r.position[1] + p.y,
+                    r.position[2] + p.z,
+                ]);
+                let v = nalgebra::Vector3::from(r.velocity) + w.cross(&p);
+                vel.extend_from_slice(&[v.x, v.y, v.z]);
+                disp.extend([0, 1, 2].map(|d| r.position[d] - shape.centre[d]));
+            }
+            for t in &track.rigid_triangles[b] {
+                tris.push(t.map(|n| n as usize + offset));
+                body.push(rigid_ids[b]);
+            }
+        }
+        let mut grid = Grid::triangles(points, &tris)?;
+        grid.add_point_field("displacement_m", 3, disp)?;
+        grid.add_point_field("velocity_m_per_s", 3, vel)?;
+        grid.add_cell_field("body", 1, body)?;
+        self.rigid
+            .write_frame(state.time, format!("frames/rigid_{k:04}.vtu"), &grid)?;
+        self.frames += 1;
+        self.frame_s += started.elapsed().as_secs_f64();
+        Ok(())
+    }
+}
+
+/// Peak resident memory of the process (MiB), from /proc (None elsewhere).
+fn peak_memory_mib() -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kib: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib / 1024.0)
+}
+
+fn progress_bar(steps: u64) -> ProgressBar {
+    let bar = ProgressBar::with_draw_target(Some(steps), ProgressDrawTarget::stderr_with_hz(4));
+    bar.set_style(
+        ProgressStyle::with_template("track {bar:40} {pos}/{len} steps, {per_sec}, eta {eta}")
+            .expect("valid template"),
+    );
+    bar
+}
+
+fn say(line: std::fmt::Arguments) {
+    use std::io::Write as _;
+    let _ = writeln!(std::io::stdout().lock(), "{line}");
+}

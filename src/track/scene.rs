@@ -1,0 +1,307 @@
+//! The track-impact scene of `ballast-qdem` (seed 004 §4): a `ballast-pack` packing
+//! (stones and one sleeper) turned into QDEM and rigid bodies with vertex spheres,
+//! settled under gravity, then loaded through the rail seats by a `time_s,Rp1,Rp2` CSV.
+//!
+//! ```toml
+//! [track]
+//! packing = "../results/bed-impact/packing.toml"
+//! loads = "../results/train_load.csv"   # time_s,Rp1,Rp2 (N), t = 0 at the end of settling
+//! stones = "rigid"                      # rigid | deformable | near
+//! deformable_within = "0.15 m"          # near: stones this close to the sleeper deform
+//! periodic = "x"                        # along the track (the packing's x), or "none"
+//! settle = "20 ms"                      # gravity only, before the loads
+//! duration = "0.2 s"                    # loaded time
+//! dt = "auto"                           # or a time; auto = dt_factor × stable
+//! dt_factor = 0.5
+//! sphere_diameter = "24 mm"
+//! skin = "2 mm"
+//! rigid_damping_ratio = 0.02
+//! sample_rate = "10 kHz"
+//! frames = 4
+//!
+//! [ballast]            # material + DEM springs (seed 004 Table 1)
+//! [sleeper]
+//! [[sensor]]           # name, on = "sleeper" | "stone", at = sleeper-mesh coordinates
+//! ```
+
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+
+use crate::scene::{Frequency, Length, Material, Stiffness, Time, Validate, Validator};
+
+/// A whole track-impact scene.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrackScene {
+    /// The run.
+    pub track: TrackSpec,
+    /// Ballast stones: material and springs.
+    pub ballast: BodyMaterial,
+    /// The sleeper: material and springs.
+    pub sleeper: BodyMaterial,
+    /// The rigid base and walls: springs.
+    pub base: Springs,
+    /// Friction coefficients.
+    #[serde(default)]
+    pub friction: FrictionSpec,
+    /// Acceleration and displacement sensors (seed 004 Figure 6).
+    #[serde(default)]
+    pub sensor: Vec<SensorSpec>,
+}
+
+/// How stones are modelled.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StoneModel {
+    /// Every stone a 6-DOF rigid body with vertex spheres.
+    Rigid,
+    /// Every stone a QDEM tetra body.
+    Deformable,
+    /// QDEM within `deformable_within` of the sleeper, rigid beyond.
+    Near,
+}
+
+/// Periodicity.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Periodic {
+    /// Walls of the packing's container on every side.
+    None,
+    /// Periodic along x (the track direction of a packing), walls across.
+    X,
+    /// Periodic along y.
+    Y,
+}
+
+/// The `[track]` table.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrackSpec {
+    /// The packing file (relative to the scene).
+    pub packing: PathBuf,
+    /// Rail-seat loads `time_s,Rp1,Rp2` (N, compressive positive), relative to the scene;
+    /// none: gravity only.
+    #[serde(default)]
+    pub loads: Option<PathBuf>,
+    /// Stone model.
+    #[serde(default = "default_stones")]
+    pub stones: StoneModel,
+    /// For `near`: stones whose centre lies within this distance of the sleeper's
+    /// bounding box deform.
+    #[serde(default)]
+    pub deformable_within: Option<Length>,
+    /// Periodic direction.
+    #[serde(default = "default_periodic")]
+    pub periodic: Periodic,
+    /// Gravity-only settling time before the loads.
+    pub settle: Time,
+    /// Mass-proportional damping rate α during settling (1/s; none after): the
+    /// spheres round the polyhedra's corners off, so the bed first closes mm gaps.
+    #[serde(default = "default_settle_damping")]
+    pub settle_damping: Frequency,
+    /// Loaded time after settling.
+    pub duration: Time,
+    /// Time step: "auto" or a time.
+    #[serde(default)]
+    pub dt: Option<DtSpec>,
+    /// Safety factor on the stable step for `dt = "auto"`.
+    #[serde(default = "default_dt_factor")]
+    pub dt_factor: f64,
+    /// Diameter of the vertex spheres (seed 004: 24 mm).
+    #[serde(default = "default_sphere")]
+    pub sphere_diameter: Length,
+    /// Verlet skin.
+    #[serde(default = "default_skin")]
+    pub skin: Length,
+    /// Dashpot ratio of contacts involving a rigid body.
+    #[serde(default = "default_rigid_damping")]
+    pub rigid_damping_ratio: f64,
+    /// Sensor sampling rate (seed 004: 10 kHz).
+    #[serde(default = "default_rate")]
+    pub sample_rate: Frequency,
+    /// VTK frames over the run (settling included).
+    #[serde(default = "default_frames")]
+    pub frames: usize,
+}
+
+/// `dt = "auto"` or a time.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum DtSpec {
+    /// dt_factor × the stable step.
+    Auto,
+    /// A given step.
+    Fixed(Time),
+}
+
+impl<'de> Deserialize<'de> for DtSpec {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let s = String::deserialize(d)?;
+        if s.trim() == "auto" {
+            Ok(DtSpec::Auto)
+        } else {
+            Time::parse(&s)
+                .map(DtSpec::Fixed)
+                .map_err(serde::de::Error::custom)
+        }
+    }
+}
+
+/// A body material and its sphere springs.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BodyMaterial {
+    /// Density, moduli, viscosities.
+    pub material: Material,
+    /// The vertex spheres' springs.
+    pub springs: Springs,
+}
+
+/// Normal and tangential spring constants of a material's spheres.
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Springs {
+    /// k_n.
+    pub normal: Stiffness,
+    /// k_t.
+    pub tangential: Stiffness,
+}
+
+/// Friction coefficients per pair of materials (seed 004 Table 1: 0.577 everywhere).
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FrictionSpec {
+    /// Stone on stone.
+    #[serde(default = "default_mu")]
+    pub ballast_ballast: f64,
+    /// Stone on sleeper.
+    #[serde(default = "default_mu")]
+    pub ballast_sleeper: f64,
+    /// Stone or sleeper on the base and walls.
+    #[serde(default = "default_mu")]
+    pub base: f64,
+}
+
+impl Default for FrictionSpec {
+    fn default() -> Self {
+        FrictionSpec {
+            ballast_ballast: default_mu(),
+            ballast_sleeper: default_mu(),
+            base: default_mu(),
+        }
+    }
+}
+
+/// Where a sensor sits.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SensorOn {
+    /// The sleeper node nearest `at`.
+    Sleeper,
+    /// The stone whose centre is nearest `at` (its centre of mass).
+    Stone,
+}
+
+/// One sensor.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SensorSpec {
+    /// Name (CSV column prefix).
+    pub name: String,
+    /// Sleeper or stone.
+    pub on: SensorOn,
+    /// Position in the sleeper mesh's coordinates (m).
+    pub at: [Length; 3],
+}
+
+fn default_stones() -> StoneModel {
+    StoneModel::Rigid
+}
+fn default_periodic() -> Periodic {
+    Periodic::X
+}
+fn default_dt_factor() -> f64 {
+    0.5
+}
+fn default_sphere() -> Length {
+    Length::from_si(0.024)
+}
+fn default_skin() -> Length {
+    Length::from_si(0.002)
+}
+fn default_rigid_damping() -> f64 {
+    0.02
+}
+fn default_rate() -> Frequency {
+    Frequency::from_si(10e3)
+}
+fn default_settle_damping() -> Frequency {
+    Frequency::from_si(200.0)
+}
+fn default_frames() -> usize {
+    4
+}
+fn default_mu() -> f64 {
+    0.577
+}
+
+impl TrackScene {
+    /// A path of the scene resolved against the scene file's directory.
+    pub fn resolve(scene_path: &Path, file: &Path) -> PathBuf {
+        scene_path.parent().unwrap_or(Path::new(".")).join(file)
+    }
+}
+
+impl Validate for TrackScene {
+    fn validate(&self, v: &mut Validator) {
+        let t = &self.track;
+        v.non_negative("track.settle", t.settle);
+        v.non_negative("track.settle_damping", t.settle_damping);
+        v.positive("track.duration", t.duration);
+        if let Some(DtSpec::Fixed(dt)) = t.dt {
+            v.positive("track.dt", dt);
+        }
+        v.check(
+            "track.dt_factor",
+            t.dt_factor > 0.0 && t.dt_factor <= 1.0,
+            "must be in (0, 1]",
+        );
+        v.positive("track.sphere_diameter", t.sphere_diameter);
+        v.positive("track.skin", t.skin);
+        v.check(
+            "track.rigid_damping_ratio",
+            (0.0..1.0).contains(&t.rigid_damping_ratio),
+            "must be in [0, 1)",
+        );
+        v.positive("track.sample_rate", t.sample_rate);
+        v.check(
+            "track.deformable_within",
+            (t.stones == StoneModel::Near) == t.deformable_within.is_some(),
+            "give it exactly when stones = \"near\"",
+        );
+        for (key, m) in [("ballast", &self.ballast), ("sleeper", &self.sleeper)] {
+            v.nested(&format!("{key}.material"), &m.material);
+            v.positive(&format!("{key}.springs.normal"), m.springs.normal);
+            v.non_negative(&format!("{key}.springs.tangential"), m.springs.tangential);
+        }
+        v.positive("base.normal", self.base.normal);
+        v.non_negative("base.tangential", self.base.tangential);
+        for (key, mu) in [
+            ("friction.ballast_ballast", self.friction.ballast_ballast),
+            ("friction.ballast_sleeper", self.friction.ballast_sleeper),
+            ("friction.base", self.friction.base),
+        ] {
+            v.check(key, mu.is_finite() && mu >= 0.0, "must be ≥ 0");
+        }
+        for (i, s) in self.sensor.iter().enumerate() {
+            v.check(
+                &format!("sensor[{i}].name"),
+                !s.name.is_empty()
+                    && s.name
+                        .chars()
+                        .all(|c| c.is_ascii_alphanumeric() || c == '_'),
+                "must be letters, digits or _",
+            );
+        }
+    }
+}
