@@ -121,7 +121,7 @@ train_load_args! {
     axle_load_kn: f64, "Static axle load, kN [default 120].";
     sleeper_spacing_m: f64, "Sleeper spacing, m [default 0.6].";
     characteristic_length_m: f64, "Characteristic length of the rail on its support, m [default 0.8].";
-    lead_in_m: f64, "Distance of the first axle before the sleeper at t = 0, m [default 3.5].";
+    lead_in_m: f64, "Distance of the first axle before the sleeper at t = 0, m [default 4.4, a zero of the influence line].";
     lead_out_m: f64, "Distance of the last axle past the sleeper at the end, m [default 8].";
     duration_s: f64, "Record length, s [default: until the last axle is lead-out past].";
     sample_rate_hz: f64, "Sampling rate, Hz [default 10000].";

@@ -678,3 +678,103 @@ fn contact_stable_step(system: &MultiBody, cstate: &ContactState) -> f64 {
     }
     2.0 / omega2.sqrt() * ((1.0 + zeta * zeta).sqrt() - zeta)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dem::{ContactLaw, Plane, SphereMaterial};
+    use crate::qdem::structured_box;
+    use nalgebra::Point3;
+
+    /// One rigid 0.2 × 0.2 × 0.1 m block (2700 kg/m³) with spheres of radius 10 mm at
+    /// its 8 corners inset by r along the diagonal (touching the faces), on the floor.
+    fn block_on_floor(mu: f64, gravity: [f64; 3]) -> MultiBody {
+        let (nodes, tets) = structured_box(Vector3::new(0.2, 0.2, 0.1), [1, 1, 1]);
+        let r = 0.01;
+        let corners: Vec<Point3<f64>> = nodes
+            .iter()
+            .map(|p| {
+                let c = |x: f64, hi: f64| if x > 0.5 * hi { x - r } else { x + r };
+                Point3::new(c(p.x, 0.2), c(p.y, 0.2), c(p.z, 0.1))
+            })
+            .collect();
+        let shape = RigidShape::from_tets(&nodes, &tets, 2700.0, &corners).unwrap();
+        let m = SphereMaterial {
+            normal_stiffness: 1e8,
+            tangential_stiffness: 4e7,
+        };
+        let n = corners.len();
+        MultiBody {
+            model: None,
+            boundary: Boundary::default(),
+            rigid: vec![shape],
+            bodies: vec![BodyKind::Rigid { index: 0 }],
+            spheres: (0..n as u32).map(|k| SphereAt::Rigid { body: 0, k }).collect(),
+            rigid_spheres: vec![0..n],
+            deformable: Vec::new(),
+            set: SphereSet {
+                radius: vec![r; n],
+                owner: vec![0; n],
+                material: vec![0; n],
+                mass: vec![10.8; n],
+                planes: vec![Plane {
+                    point: [0.0; 3],
+                    normal: [0.0, 0.0, 1.0],
+                    material: 0,
+                }],
+                laws: vec![ContactLaw::between(&m, &m, mu, 0.1)],
+                materials: 1,
+                period: None,
+            },
+            gravity,
+        }
+    }
+
+    #[test]
+    fn a_block_comes_to_rest_on_its_springs() {
+        let g = 9.81;
+        let system = block_on_floor(0.5, [0.0, 0.0, -g]);
+        let mut state = system.at_rest();
+        let mut solver = MultiBodySolver::new(&system, 2e-5, 1e-3).unwrap();
+        let s = solver.stability(&mut state);
+        assert!(s.contact > 2e-5, "{s:?}");
+        for _ in 0..20_000 {
+            solver.step(&mut state).unwrap();
+        }
+        // Four bottom spheres carry m g: each overlaps m g / (4 k).
+        let mass = system.rigid[0].mass;
+        let expect = mass * g / (4.0 * 1e8);
+        let sink = system.rigid[0].centre[2] - state.rigid[0].position[2];
+        assert!((sink / expect - 1.0).abs() < 1e-3, "sink {sink} vs {expect}");
+        assert!(state.kinetic() < 1e-9 * mass * g * 0.05);
+        assert!(state.balance_error().abs() < 1e-3 * state.external_work().abs());
+    }
+
+    #[test]
+    fn a_block_sticks_below_the_friction_angle_and_slides_above_it() {
+        let g = 9.81;
+        let mu = 0.5;
+        for (degrees, slides) in [(20.0f64, false), (35.0, true)] {
+            let theta = degrees.to_radians();
+            // The floor tilted by θ about y: gravity turned the other way.
+            let system = block_on_floor(mu, [g * theta.sin(), 0.0, -g * theta.cos()]);
+            let mut state = system.at_rest();
+            let mut solver = MultiBodySolver::new(&system, 2e-5, 1e-3).unwrap();
+            solver.stability(&mut state);
+            let steps = 10_000; // 0.2 s
+            for _ in 0..steps {
+                solver.step(&mut state).unwrap();
+            }
+            let x = state.rigid[0].position[0] - system.rigid[0].centre[0];
+            let t = steps as f64 * 2e-5;
+            let a = g * (theta.sin() - mu * theta.cos());
+            if slides {
+                // x = a t²/2 after the springs load (a few 0.1 ms): within 1 %.
+                assert!((x / (0.5 * a * t * t) - 1.0).abs() < 0.01, "x {x} vs {}", 0.5 * a * t * t);
+            } else {
+                // Only the tangential springs' elastic give: m g sinθ / (4 k_t) ≈ 0.3 µm.
+                assert!(x.abs() < 2e-6, "drift {x}");
+            }
+        }
+    }
+}

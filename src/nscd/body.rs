@@ -304,6 +304,14 @@ impl Body {
         self
     }
 
+    /// The body with infinite inertia about every axis: it translates but does not
+    /// turn (a sleeper held level by its rails while it is lowered onto the bed).
+    pub fn translation_only(mut self) -> Body {
+        self.inertia = Vector3::repeat(f64::INFINITY);
+        self.angular_velocity = Vector3::zeros();
+        self
+    }
+
     /// Whether the dynamics moves it.
     pub fn is_dynamic(&self) -> bool {
         self.motion == Motion::Dynamic

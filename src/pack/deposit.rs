@@ -99,6 +99,8 @@ pub struct SleeperModel {
     pub density: f64,
     /// Material index.
     pub material: u32,
+    /// Held level (translation only) rather than only without yaw.
+    pub level: bool,
 }
 
 /// Everything fixed for the deposition.
@@ -620,8 +622,12 @@ impl Deposition {
                 model.density,
                 model.material,
                 pose,
-            )
-            .without_yaw();
+            );
+            body = if model.level {
+                body.translation_only()
+            } else {
+                body.without_yaw()
+            };
             body.velocity = Vector3::zeros();
             self.bodies.push(body);
             self.roles.push(Role::Sleeper(k));

@@ -151,6 +151,12 @@ pub struct SleepersSpec {
     pub embed: Length,
     /// Material name.
     pub material: String,
+    /// Hold the sleepers level (no rotation at all, as if the rails held them) instead
+    /// of only square to the track; a sleeper then rests on its highest supports
+    /// without tilting (the `impact` beds: QDEM contact spheres round the stones'
+    /// corners, and a tilted sleeper would first have to settle back down).
+    #[serde(default)]
+    pub level: bool,
 }
 
 /// `[deposit]`.

@@ -500,8 +500,16 @@ fn qdem_material(m: &crate::scene::Material) -> QdemMaterial {
     }
 }
 
+/// A vertex sphere's radius is at least this fraction of the longest surface edge at
+/// the vertex, so neighbouring spheres overlap along every edge (2 × 0.6 > 1) and
+/// cover the middle of every triangle (an equilateral one's circumradius is 0.577 e):
+/// the sphere surface has no holes a sphere of another body could pass through. On
+/// seed 004's meshes (10 mm edges, 24 mm spheres) the scene's diameter already does.
+pub const COVER: f64 = 0.6;
+
 /// Sphere centres (as offsets from the surface nodes `surface`, ascending) and radii
-/// for a body with outward boundary triangles `boundary`, so that every sphere lies
+/// (the scene's r, or [`COVER`] × the longest edge at the vertex if larger) for a body
+/// with outward boundary triangles `boundary`, so that every sphere lies
 /// inside the body: the centre goes in by d = r / max(min_f n̂·n_f, 1/3) along the
 /// area-weighted vertex normal n̂ (n_f: the normals of the vertex's faces; d = r on a
 /// flat face, where the sphere touches the face), halved until it is inside the body
@@ -521,6 +529,7 @@ fn sphere_insets(
     let index: HashMap<u32, usize> = surface.iter().enumerate().map(|(k, &n)| (n, k)).collect();
     let mut normal = vec![Vector3::zeros(); surface.len()];
     let mut faces: Vec<Vec<Vector3<f64>>> = vec![Vec::new(); surface.len()];
+    let mut longest = vec![0.0f64; surface.len()];
     let triangles: Vec<[Point3<f64>; 3]> = boundary
         .iter()
         .map(|t| t.map(|n| nodes[n as usize]))
@@ -530,10 +539,12 @@ fn sphere_insets(
         let Some(unit) = area_normal.try_normalize(0.0) else {
             continue;
         };
-        for n in tri {
+        let edges = [(p[1] - p[0]).norm(), (p[2] - p[1]).norm(), (p[0] - p[2]).norm()];
+        for (c, n) in tri.iter().enumerate() {
             let k = index[n];
             normal[k] += area_normal;
             faces[k].push(unit);
+            longest[k] = longest[k].max(edges[c]).max(edges[(c + 2) % 3]);
         }
     }
     // Generalised winding number: Σ solid angles / 4π, 1 inside, 0 outside.
@@ -557,7 +568,9 @@ fn sphere_insets(
     surface
         .iter()
         .zip(normal.iter().zip(&faces))
-        .map(|(&v, (n, fs))| {
+        .zip(&longest)
+        .map(|((&v, (n, fs)), &edge)| {
+            let r = r.max(COVER * edge);
             let Some(n) = n.try_normalize(0.0) else {
                 return ([0.0; 3], r);
             };
@@ -624,25 +637,25 @@ mod tests {
     use crate::qdem::structured_box;
 
     #[test]
-    fn the_spheres_lie_inside_a_box_and_touch_its_faces() {
+    fn the_spheres_lie_inside_a_box_and_cover_its_surface() {
         let (nodes, tets) = structured_box(Vector3::new(0.4, 0.3, 0.2), [4, 3, 2]);
         let boundary = boundary_faces(&tets).unwrap();
         let mesh = TetMesh::from_parts("box", nodes.clone(), tets, Vec::new()).unwrap();
         assert_eq!(mesh.boundary.len(), boundary.len());
         let surface = surface_nodes(&mesh);
-        let r = 0.012;
-        let insets = sphere_insets(&nodes, &mesh.boundary, &surface, r);
+        let insets = sphere_insets(&nodes, &mesh.boundary, &surface, 0.012);
         for (&n, (o, radius)) in surface.iter().zip(&insets) {
-            assert_eq!(*radius, r);
+            let r = *radius;
+            assert!(r >= 0.012 && r <= COVER * 0.1 * 2f64.sqrt() + 1e-12, "{r}");
             let c = nodes[n as usize].coords + Vector3::from(*o);
             // Inside every face plane by at least r (to round-off), touching at least one.
             let gaps = [c.x, 0.4 - c.x, c.y, 0.3 - c.y, c.z, 0.2 - c.z];
+            // Inside the box, touching a face where the centre went in by r.
             let min = gaps.iter().fold(f64::INFINITY, |a, &b| a.min(b));
-            assert!((min - r).abs() < 1e-12 || min > r, "node {n}: {gaps:?}");
-            assert!(
-                gaps.iter().any(|g| (g - r).abs() < 1e-12) || min < 3.0 * r,
-                "node {n}: {gaps:?}"
-            );
+            assert!(min >= r - 1e-12, "node {n}: r {r}, {gaps:?}");
+            if o.iter().map(|c| c * c).sum::<f64>().sqrt() < r * 1.000001 {
+                assert!((min - r).abs() < 1e-12, "node {n}: r {r}, {gaps:?}");
+            }
         }
     }
 }

@@ -2,6 +2,8 @@
 //! ballast under rail-seat loads (seed 004 §4).
 //!
 //! Output directory:
+//! Times in both CSVs are on the load file's clock: 0 at the end of settling (negative
+//! while settling in `track.csv`; `sensors.csv` starts at 0).
 //! - `sensors.csv`: `time_s`, then per sensor `NAME_u{x,y,z}_m`, `NAME_v{x,y,z}_m_per_s`,
 //!   `NAME_a{x,y,z}_m_per_s2` at the sampling rate (seed 004: 10 kHz); what
 //!   `ballast-post spectra` reads;
@@ -159,6 +161,8 @@ pub fn run(ctx: &RunContext, force: bool) -> Result<()> {
         .figure("rigid_stones", sys.rigid.len())
         .figure("tetra", sys.tet_count())
         .figure("spheres", sys.spheres.len())
+        .figure("sphere_diameter_min_m", 2.0 * sys.set.radius.iter().fold(f64::INFINITY, |a, &b| a.min(b)))
+        .figure("sphere_diameter_max_m", 2.0 * sys.set.max_radius())
         .figure("stable_dt_s", stable.stable())
         .figure("stable_dt_tetra_s", stable.tetra)
         .figure("stable_dt_contact_s", stable.contact)
@@ -303,7 +307,8 @@ impl Outputs {
         settle: f64,
     ) -> Result<()> {
         let sys = &track.system;
-        let mut row = vec![state.time];
+        let clock = state.time - settle;
+        let mut row = vec![clock];
         let g = sys.gravity;
         for sensor in &track.sensors {
             let (u, v, a) = match &sensor.at {
@@ -345,14 +350,16 @@ impl Outputs {
             row.extend_from_slice(&v);
             row.extend_from_slice(&a);
         }
-        self.sensors.push(&row)?;
+        if clock >= -1e-9 * settle.max(1.0) {
+            self.sensors.push(&row)?;
+        }
         let (rp1, rp2) = match loads {
             Some(l) if state.time >= settle => l.at(state.time - settle),
             _ => (0.0, 0.0),
         };
         let strain = state.deformable.as_ref().map_or(0.0, |s| s.energies.strain);
         self.track.push(&[
-            state.time,
+            clock,
             rp1,
             rp2,
             self.settlement(track, state),
