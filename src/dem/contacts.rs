@@ -70,6 +70,10 @@ pub struct PairState {
     pub second: u32,
     /// Tangential spring elongation (m).
     pub xi: [f64; 3],
+    /// Rest overlap (m): the overlap of a pair already overlapping when the list was
+    /// first built, which then carries no force (an imported packing starts at rest
+    /// rather than exploding); 0 for pairs that meet later.
+    pub rest: f64,
     /// Force on the second member this step (N).
     #[serde(skip)]
     pub force: [f64; 3],
@@ -161,6 +165,7 @@ impl Contacts {
                 first: i,
                 second: j,
                 xi: [0.0; 3],
+                rest: 0.0,
                 force: [0.0; 3],
             })
             .collect();
@@ -173,6 +178,7 @@ impl Contacts {
                         first: i as u32,
                         second: PLANE | k as u32,
                         xi: [0.0; 3],
+                        rest: 0.0,
                         force: [0.0; 3],
                     });
                 }
@@ -189,6 +195,12 @@ impl Contacts {
             }
             if k < old.len() && (old[k].first, old[k].second) == (p.first, p.second) {
                 p.xi = old[k].xi;
+                p.rest = old[k].rest;
+            }
+        }
+        if state.rebuilds == 0 {
+            for p in &mut fresh {
+                p.rest = self.overlap(p, positions).max(0.0);
             }
         }
         state.pairs = fresh;
@@ -196,6 +208,20 @@ impl Contacts {
         state.rebuilds += 1;
         self.index_gather(&state.pairs, n);
         true
+    }
+
+    /// The geometric overlap of a pair (m; negative: a gap).
+    fn overlap(&self, p: &PairState, positions: &[[f64; 3]]) -> f64 {
+        let set = &self.set;
+        let i = p.first as usize;
+        if p.second & PLANE != 0 {
+            let plane = &set.planes[(p.second & !PLANE) as usize];
+            set.radius[i] - dot(sub(positions[i], plane.point), plane.normal)
+        } else {
+            let j = p.second as usize;
+            let d = Period::difference(set.period.as_ref(), positions[i], positions[j]);
+            set.radius[i] + set.radius[j] - norm(d)
+        }
     }
 
     fn index_gather(&mut self, pairs: &[PairState], n: usize) {
@@ -271,6 +297,7 @@ impl Contacts {
                     false,
                 )
             };
+            let overlap = overlap - p.rest;
             if overlap <= 0.0 {
                 p.xi = [0.0; 3];
                 p.force = [0.0; 3];
@@ -358,10 +385,14 @@ mod tests {
     fn forces_are_equal_and_opposite_and_the_plane_pushes_up() {
         let mut c = Contacts::new(set(3, vec![0, 1, 1]), 0.005);
         let mut state = ContactState::default();
+        // The first list is built apart (pairs overlapping then would rest there).
+        let apart = [[0.0, 0.0, 0.5], [0.03, 0.0, 0.5], [0.5, 0.0, 0.02]];
+        let mut f = [[0.0; 3]; 3];
+        c.evaluate(&mut state, &apart, &[[0.0; 3]; 3], 1e-5, &mut f);
+        assert!(f.iter().flatten().all(|&x| x == 0.0));
         // Sphere 0 overlaps sphere 1 by 4 mm; 1 and 2 share a body; 2 sits 2 mm into the floor.
         let x = [[0.0, 0.0, 0.5], [0.02, 0.0, 0.5], [0.5, 0.0, 0.010]];
         let v = [[0.0; 3]; 3];
-        let mut f = [[0.0; 3]; 3];
         let t = c.evaluate(&mut state, &x, &v, 1e-5, &mut f);
         assert_eq!((t.touching, t.touching_planes), (1, 1));
         assert!((f[0][0] + 1e6 * 0.004).abs() < 1e-6 && (f[1][0] - 1e6 * 0.004).abs() < 1e-6);

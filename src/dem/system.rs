@@ -85,6 +85,8 @@ pub struct MultiBody {
     /// The deformable bodies' node ranges (their spheres' insets turn with the
     /// best-fit rotation of these nodes).
     pub deformable: Vec<Range<u32>>,
+    /// Whether any node sphere has an inset (else the best-fit rotations are skipped).
+    pub insets: bool,
     /// Radii, owners, materials, masses, planes and laws of the spheres.
     pub set: SphereSet,
     /// Gravity (m/s²).
@@ -314,48 +316,7 @@ impl<'m> MultiBodySolver<'m> {
             &mut self.sphere_v,
         );
         self.contacts.refresh(&mut state.contacts, &self.sphere_x);
-        let contact = contact_stable_step(self.system, &state.contacts);
-        if std::env::var_os("BALLAST_DEBUG_OVERLAP").is_some() {
-            let set = &self.system.set;
-            let mut worst: Vec<(f64, u32, u32)> = state
-                .contacts
-                .pairs
-                .iter()
-                .map(|p| {
-                    let i = p.first as usize;
-                    let o = if p.second & (1 << 31) != 0 {
-                        let pl = &set.planes[(p.second & !(1 << 31)) as usize];
-                        let x = self.sphere_x[i];
-                        set.radius[i]
-                            - ((x[0] - pl.point[0]) * pl.normal[0]
-                                + (x[1] - pl.point[1]) * pl.normal[1]
-                                + (x[2] - pl.point[2]) * pl.normal[2])
-                    } else {
-                        let j = p.second as usize;
-                        let d = super::neighbours::Period::difference(
-                            set.period.as_ref(),
-                            self.sphere_x[i],
-                            self.sphere_x[j],
-                        );
-                        set.radius[i] + set.radius[j]
-                            - (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
-                    };
-                    (o, p.first, p.second)
-                })
-                .collect();
-            worst.sort_by(|a, b| b.0.total_cmp(&a.0));
-            for (o, i, j) in worst.iter().take(15) {
-                let oj = if j & (1 << 31) != 0 {
-                    format!("plane {}", j & !(1 << 31))
-                } else {
-                    format!("body {} sphere {j}", set.owner[*j as usize])
-                };
-                eprintln!(
-                    "overlap {o:.4e} m: body {} sphere {i} at {:?} with {oj}",
-                    set.owner[*i as usize], self.sphere_x[*i as usize]
-                );
-            }
-        }
+        let contact = contact_stable_step(self.system, &state.contacts, &self.sphere_x, &state.rigid);
         let s = SystemStability { tetra, contact };
         self.stable = Some(s);
         s
@@ -521,7 +482,7 @@ fn gather(
         .map(|(r, s)| (r.rotation(), r.angular_velocity(s)))
         .collect();
     let turns: Vec<nalgebra::Matrix3<f64>> = match (x, &system.model) {
-        (Some(x), Some(model)) if !x.is_empty() => system
+        (Some(x), Some(model)) if !x.is_empty() && system.insets => system
             .deformable
             .iter()
             .map(|r| best_fit_rotation(model, x, r.clone()))
@@ -633,24 +594,45 @@ fn contact_forces(
 
 /// 2/ω_max over nodes and rigid bodies, ω² = Σ k_n / m (and Σ k_n r² / I_min for a
 /// rigid body's rotation) over the candidate pairs, times the dashpot correction.
-fn contact_stable_step(system: &MultiBody, cstate: &ContactState) -> f64 {
+fn contact_stable_step(
+    system: &MultiBody,
+    cstate: &ContactState,
+    sx: &[[f64; 3]],
+    rigid: &[RigidState],
+) -> f64 {
+    use nalgebra::Matrix3;
     let set = &system.set;
     let mut stiffness = vec![0.0; system.spheres.len()];
     let mut zeta: f64 = 0.0;
+    // Per rigid body: Σ k n nᵀ (translation) and Σ k (r × n)(r × n)ᵀ (rotation).
+    let mut translational = vec![Matrix3::zeros(); system.rigid.len()];
+    let mut rotational = vec![Matrix3::zeros(); system.rigid.len()];
+    let mut add = |s: usize, k: f64, n: Vector3<f64>| {
+        stiffness[s] += k;
+        if let SphereAt::Rigid { body, .. } = system.spheres[s] {
+            let b = body as usize;
+            let r = Vector3::from(sx[s]) - Vector3::from(rigid[b].position);
+            let arm = r.cross(&n);
+            translational[b] += k * n * n.transpose();
+            rotational[b] += k * arm * arm.transpose();
+        }
+    };
     for p in &cstate.pairs {
         let i = p.first as usize;
-        let (k, z) = if p.second & (1 << 31) != 0 {
+        if p.second & (1 << 31) != 0 {
             let plane = &set.planes[(p.second & !(1 << 31)) as usize];
             let law = set.laws[plane.material as usize * set.materials + set.material[i] as usize];
-            (law.normal_stiffness, law.damping_ratio)
+            add(i, law.normal_stiffness, Vector3::from(plane.normal));
+            zeta = zeta.max(law.damping_ratio);
         } else {
             let j = p.second as usize;
             let law = set.laws[set.material[i] as usize * set.materials + set.material[j] as usize];
-            stiffness[j] += law.normal_stiffness;
-            (law.normal_stiffness, law.damping_ratio)
-        };
-        stiffness[i] += k;
-        zeta = zeta.max(z);
+            let d = super::neighbours::Period::difference(set.period.as_ref(), sx[i], sx[j]);
+            let n = Vector3::from(d).try_normalize(0.0).unwrap_or(Vector3::z());
+            add(i, law.normal_stiffness, n);
+            add(j, law.normal_stiffness, n);
+            zeta = zeta.max(law.damping_ratio);
+        }
     }
     let mut omega2: f64 = 0.0;
     let masses = system.model.as_ref().map(|m| m.node_masses());
@@ -659,19 +641,14 @@ fn contact_stable_step(system: &MultiBody, cstate: &ContactState) -> f64 {
             omega2 = omega2.max(stiffness[s] / m[*node as usize]);
         }
     }
-    for (b, range) in system.rigid_spheres.iter().enumerate() {
-        let shape = &system.rigid[b];
-        let k: f64 = stiffness[range.clone()].iter().sum();
-        let i_min = shape
-            .principal_inertia
-            .iter()
-            .fold(f64::INFINITY, |a, &b| a.min(b));
-        let kr2: f64 = range
-            .clone()
-            .zip(&shape.spheres)
-            .map(|(s, r)| stiffness[s] * (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]))
-            .sum();
-        omega2 = omega2.max(k / shape.mass).max(kr2 / i_min);
+    for (b, shape) in system.rigid.iter().enumerate() {
+        let t = translational[b].symmetric_eigenvalues().max() / shape.mass;
+        // I^{-1/2} Rᵀ K_r R I^{-1/2} in the principal frame.
+        let r = rigid[b].rotation().to_rotation_matrix();
+        let k = r.matrix().transpose() * rotational[b] * r.matrix();
+        let scale = Matrix3::from_diagonal(&Vector3::from(shape.principal_inertia.map(|i| 1.0 / i.sqrt())));
+        let w = (scale * k * scale).symmetric_eigenvalues().max();
+        omega2 = omega2.max(t).max(w);
     }
     if omega2 <= 0.0 {
         return f64::INFINITY;
@@ -712,6 +689,7 @@ mod tests {
             spheres: (0..n as u32).map(|k| SphereAt::Rigid { body: 0, k }).collect(),
             rigid_spheres: vec![0..n],
             deformable: Vec::new(),
+            insets: false,
             set: SphereSet {
                 radius: vec![r; n],
                 owner: vec![0; n],

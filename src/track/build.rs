@@ -10,7 +10,7 @@ use std::path::Path;
 use nalgebra::{Point3, Vector3};
 
 use super::loads::RailSeatLoads;
-use super::scene::{Periodic, SensorOn, StoneModel, TrackScene};
+use super::scene::{Periodic, SensorOn, SphereCentres, StoneModel, TrackScene};
 use crate::dem::{
     BodyKind, ContactLaw, MultiBody, Period, Plane, RigidShape, SphereAt, SphereMaterial, SphereSet,
 };
@@ -166,13 +166,14 @@ pub fn build(
         nodes: 0..nodes.len() as u32,
     }];
     let radius = 0.5 * t.sphere_diameter.si();
+    let inset = t.sphere_centres == SphereCentres::Inset;
     // (node, material, owner body, deformable index, (inset, radius)), ascending by node.
     let mut node_spheres: Vec<(u32, u16, u32, u32, ([f64; 3], f64))> = Vec::new();
     let mut rigid_radii: Vec<Vec<f64>> = Vec::new();
     let mut deformable = vec![0..sleeper_world.len() as u32];
     {
         let surface = surface_nodes(&sleeper_mesh);
-        let insets = sphere_insets(&sleeper_world, &sleeper_mesh.boundary, &surface, radius);
+        let insets = sphere_insets(&sleeper_world, &sleeper_mesh.boundary, &surface, radius, inset);
         let (surface, insets): (Vec<u32>, Vec<([f64; 3], f64)>) = surface
             .iter()
             .zip(insets)
@@ -198,7 +199,7 @@ pub fn build(
         let surface = surface_nodes(m);
         let (surface, insets): (Vec<u32>, Vec<([f64; 3], f64)>) = surface
             .iter()
-            .zip(sphere_insets(world, &m.boundary, &surface, radius))
+            .zip(sphere_insets(world, &m.boundary, &surface, radius, inset))
             .filter(|(_, o)| o.1 > 0.0)
             .map(|(&n, o)| (n, o))
             .unzip();
@@ -420,6 +421,7 @@ pub fn build(
             spheres,
             rigid_spheres,
             deformable,
+            insets: inset,
             set,
             gravity: [0.0, 0.0, -9.81],
         },
@@ -507,7 +509,10 @@ fn qdem_material(m: &crate::scene::Material) -> QdemMaterial {
 /// seed 004's meshes (10 mm edges, 24 mm spheres) the scene's diameter already does.
 pub const COVER: f64 = 0.6;
 
-/// Sphere centres (as offsets from the surface nodes `surface`, ascending) and radii
+/// With `inset` false: spheres of radius r centred on the vertices (seed 004; on a mesh
+/// coarser than the spheres the sphere surface has holes, but the rest overlaps of the
+/// packing's pairs hold the bed as it was packed).
+/// With `inset`: sphere centres (as offsets from the surface nodes `surface`, ascending) and radii
 /// (the scene's r, or [`COVER`] × the longest edge at the vertex if larger) for a body
 /// with outward boundary triangles `boundary`, so that every sphere lies
 /// inside the body: the centre goes in by d = r / max(min_f n̂·n_f, 1/3) along the
@@ -523,6 +528,7 @@ fn sphere_insets(
     boundary: &[[u32; 3]],
     surface: &[u32],
     r: f64,
+    inset: bool,
 ) -> Vec<([f64; 3], f64)> {
     use parry3d_f64::query::PointQuery;
     use parry3d_f64::shape::Triangle;
@@ -570,6 +576,9 @@ fn sphere_insets(
         .zip(normal.iter().zip(&faces))
         .zip(&longest)
         .map(|((&v, (n, fs)), &edge)| {
+            if !inset {
+                return ([0.0; 3], r);
+            }
             let r = r.max(COVER * edge);
             let Some(n) = n.try_normalize(0.0) else {
                 return ([0.0; 3], r);
@@ -643,7 +652,7 @@ mod tests {
         let mesh = TetMesh::from_parts("box", nodes.clone(), tets, Vec::new()).unwrap();
         assert_eq!(mesh.boundary.len(), boundary.len());
         let surface = surface_nodes(&mesh);
-        let insets = sphere_insets(&nodes, &mesh.boundary, &surface, 0.012);
+        let insets = sphere_insets(&nodes, &mesh.boundary, &surface, 0.012, true);
         for (&n, (o, radius)) in surface.iter().zip(&insets) {
             let r = *radius;
             assert!(r >= 0.012 && r <= COVER * 0.1 * 2f64.sqrt() + 1e-12, "{r}");

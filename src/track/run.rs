@@ -121,11 +121,13 @@ pub fn run(ctx: &RunContext, force: bool) -> Result<()> {
     })?;
     let mut settled_at = 0.0;
     let mut kinetic_after_settling = state.kinetic();
+    let mut sinking_after_settling = 0.0;
     while state.step < total_steps {
         if state.step == settle_steps && settle_steps > 0 {
             solver.set_damping(0.0)?;
             settled_at = out.settlement(&track, &state);
             kinetic_after_settling = state.kinetic();
+            sinking_after_settling = out.sleeper_velocity(&track, &state);
             timer.add("settling", started.elapsed());
         }
         solver.step(&mut state)?;
@@ -173,6 +175,7 @@ pub fn run(ctx: &RunContext, force: bool) -> Result<()> {
         .figure("sleeper_settlement_m", settlement)
         .figure("settling_sink_m", settled_at)
         .figure("kinetic_energy_after_settling_j", kinetic_after_settling)
+        .figure("sleeper_velocity_after_settling_m_per_s", sinking_after_settling)
         .figure("max_overlap_m", max_overlap)
         .figure("final_max_overlap_m", solver.last.max_overlap)
         .figure("final_mean_overlap_m", solver.last.mean_overlap)
@@ -296,6 +299,13 @@ impl Outputs {
             .map(|&i| s.positions[i as usize][2] - r[i as usize][2])
             .sum::<f64>()
             / n
+    }
+
+    /// Mean vertical velocity of the sleeper's bottom nodes (m/s).
+    fn sleeper_velocity(&self, track: &Track, state: &MultiState) -> f64 {
+        let Some(s) = &state.deformable else { return 0.0 };
+        let n = track.sleeper_bottom.len().max(1) as f64;
+        track.sleeper_bottom.iter().map(|&i| s.velocities[i as usize][2]).sum::<f64>() / n
     }
 
     fn record(

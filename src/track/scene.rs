@@ -108,6 +108,10 @@ pub struct TrackSpec {
     /// Safety factor on the stable step for `dt = "auto"`.
     #[serde(default = "default_dt_factor")]
     pub dt_factor: f64,
+    /// Where the spheres sit: on the vertices (seed 004; the default) or inset into
+    /// the polyhedron so that their envelope is the polyhedron with rounded corners.
+    #[serde(default = "default_centres")]
+    pub sphere_centres: SphereCentres,
     /// Diameter of the vertex spheres (seed 004: 24 mm).
     #[serde(default = "default_sphere")]
     pub sphere_diameter: Length,
@@ -123,6 +127,20 @@ pub struct TrackSpec {
     /// VTK frames over the run (settling included).
     #[serde(default = "default_frames")]
     pub frames: usize,
+}
+
+/// Where a body's contact spheres are centred.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SphereCentres {
+    /// On the surface vertices (seed 004 §4): the contact shape is the polyhedron
+    /// dilated by r. Pairs overlapping when the packing is read (it was made with the
+    /// polyhedra) rest at that overlap.
+    Vertices,
+    /// Inset along the vertex normal so that each sphere lies inside the polyhedron:
+    /// the contact shape is the polyhedron with its corners rounded off (by up to 2r),
+    /// so the bed first sinks into the gaps this leaves.
+    Inset,
 }
 
 /// `dt = "auto"` or a time.
@@ -214,6 +232,9 @@ pub struct SensorSpec {
     pub at: [Length; 3],
 }
 
+fn default_centres() -> SphereCentres {
+    SphereCentres::Vertices
+}
 fn default_stones() -> StoneModel {
     StoneModel::Rigid
 }
