@@ -49,7 +49,16 @@ fn inputs() -> &'static (PathBuf, PathBuf) {
         let load = dir.join("train_load.csv");
         ok(
             Command::new(POST)
-                .args(["train-load", "--cars", "1", "--lead-in-m", "1.885", "--duration-s", "0.2", "--out"])
+                .args([
+                    "train-load",
+                    "--cars",
+                    "1",
+                    "--lead-in-m",
+                    "1.885",
+                    "--duration-s",
+                    "0.2",
+                    "--out",
+                ])
                 .arg(&load)
                 .output()
                 .unwrap(),
@@ -116,7 +125,10 @@ fn the_quick_track_runs_and_its_sensors_see_the_axle() {
     let dir = quick();
     let f = figures(dir);
     let (packing, _) = inputs();
-    let stones = std::fs::read_to_string(packing).unwrap().matches("[[stone]]").count();
+    let stones = std::fs::read_to_string(packing)
+        .unwrap()
+        .matches("[[stone]]")
+        .count();
     assert_eq!(figure(&f, "stones") as usize, stones);
     assert_eq!(figure(&f, "rigid_stones") as usize, stones);
     assert!(figure(&f, "dt_s") <= figure(&f, "stable_dt_s"));
@@ -126,19 +138,29 @@ fn the_quick_track_runs_and_its_sensors_see_the_axle() {
     assert!(figure(&f, "energy_balance_relative") < 1e-2, "{f}");
     // Springs of ~2 GN/m under at most the 2 × 35 kN of one axle: overlaps of µm, far
     // below 0.1 % of the stones' size (the packing's own criterion).
-    assert!(figure(&f, "max_overlap_m") < 1e-3 * figure(&f, "stone_size_m"), "{f}");
+    assert!(
+        figure(&f, "max_overlap_m") < 1e-3 * figure(&f, "stone_size_m"),
+        "{f}"
+    );
     assert!(figure(&f, "peak_memory_mib") > 0.0);
     assert!(figure(&f, "contact_pairs_per_s") > 0.0);
 
     let (header, rows) = csv(&dir.join("sensors.csv"));
     for name in ["S1", "S2", "S3", "B1", "B2", "B3"] {
         for c in ["ux_m", "vz_m_per_s", "az_m_per_s2"] {
-            assert!(header.contains(&format!("{name}_{c}")), "{name}_{c} missing: {header:?}");
+            assert!(
+                header.contains(&format!("{name}_{c}")),
+                "{name}_{c} missing: {header:?}"
+            );
         }
     }
     assert_eq!(rows[0][0], 0.0, "the sensors start at the end of settling");
     for w in rows.windows(2) {
-        assert!(((w[1][0] - w[0][0]) / 1e-4 - 1.0).abs() < 1e-6, "not 10 kHz: {:?}", (w[0][0], w[1][0]));
+        assert!(
+            ((w[1][0] - w[0][0]) / 1e-4 - 1.0).abs() < 1e-6,
+            "not 10 kHz: {:?}",
+            (w[0][0], w[1][0])
+        );
     }
     // track.csv: the applied load follows the file (linear interpolation).
     let (th, tr) = csv(&dir.join("track.csv"));
@@ -146,7 +168,10 @@ fn the_quick_track_runs_and_its_sensors_see_the_axle() {
     let peak = tr.iter().map(|r| r[rp1]).fold(0.0, f64::max);
     // Zimmermann: one wheel of 60 kN gives W a / (2L) = 22.5 kN; the bogie's second
     // axle 2.1 m behind adds its influence line's value there (η(2.1/0.8) ≈ −0.07).
-    assert!(peak > 0.85 * 22.5e3 && peak < 1.05 * 22.5e3, "peak Rp1 {peak} N");
+    assert!(
+        peak > 0.85 * 22.5e3 && peak < 1.05 * 22.5e3,
+        "peak Rp1 {peak} N"
+    );
 }
 
 /// The VTK series read back with VTK: the deformable sleeper's tetra with its fields,
@@ -160,15 +185,43 @@ fn the_track_vtk_reads_back() {
     let frames = deformable["frames"].as_array().unwrap();
     assert!(frames.len() >= 2);
     let last = &frames.last().unwrap()["frame"];
-    assert_eq!(last["n_cells"].as_u64().unwrap() as f64, figure(&f, "tetra"));
-    let names: Vec<&str> = last["point_data"].as_array().unwrap().iter().map(|a| a["name"].as_str().unwrap()).collect();
-    assert!(names.contains(&"displacement_m") && names.contains(&"velocity_m_per_s"), "{names:?}");
-    let cells: Vec<&str> = last["cell_data"].as_array().unwrap().iter().map(|a| a["name"].as_str().unwrap()).collect();
-    assert!(cells.contains(&"von_mises_Pa") && cells.contains(&"body"), "{cells:?}");
+    assert_eq!(
+        last["n_cells"].as_u64().unwrap() as f64,
+        figure(&f, "tetra")
+    );
+    let field_names = |kind: &str| -> Vec<String> {
+        last[kind]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|a| a["name"].as_str().unwrap().to_string())
+            .collect()
+    };
+    let names = field_names("point_data");
+    assert!(
+        names.iter().any(|n| n == "displacement_m")
+            && names.iter().any(|n| n == "velocity_m_per_s"),
+        "{names:?}"
+    );
+    let cells = field_names("cell_data");
+    assert!(
+        cells.iter().any(|n| n == "von_mises_Pa") && cells.iter().any(|n| n == "body"),
+        "{cells:?}"
+    );
     let rigid = &json[dir.join("rigid.pvd").to_str().unwrap()];
     let last = &rigid["frames"].as_array().unwrap().last().unwrap()["frame"];
-    let body = last["cell_data"].as_array().unwrap().iter().find(|a| a["name"] == "body").unwrap();
-    let ids: std::collections::BTreeSet<i64> = body["values"].as_array().unwrap().iter().map(|v| v.as_i64().unwrap()).collect();
+    let body = last["cell_data"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|a| a["name"] == "body")
+        .unwrap();
+    let ids: std::collections::BTreeSet<i64> = body["values"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_i64().unwrap())
+        .collect();
     // Body 0 is the sleeper; every stone is rigid here.
     assert_eq!(ids.len() as f64, figure(&f, "rigid_stones"));
     assert!(!ids.contains(&0));
@@ -198,9 +251,21 @@ fn the_spectra_of_the_quick_run() {
     for s in ["S1", "S2", "S3", "B1", "B2", "B3"] {
         assert!(json["sensors"][s]["peaks_hz"].is_array(), "{s}: {json}");
     }
-    for suffix in ["_spectra.csv", "_spectra.svg", "_spectra.png", "_histories.svg", "_histories.png"] {
+    for suffix in [
+        "_spectra.csv",
+        "_spectra.svg",
+        "_spectra.png",
+        "_histories.svg",
+        "_histories.png",
+    ] {
         let file = PathBuf::from(format!("{}{suffix}", prefix.display()));
-        assert!(std::fs::metadata(&file).map(|m| m.len() > 0).unwrap_or(false), "{}", file.display());
+        assert!(
+            std::fs::metadata(&file)
+                .map(|m| m.len() > 0)
+                .unwrap_or(false),
+            "{}",
+            file.display()
+        );
     }
 }
 
@@ -213,16 +278,34 @@ fn the_track_run_does_not_depend_on_the_thread_count() {
     for threads in ["1", "2"] {
         let out = base.path().join(threads);
         ok(
-            qdem(&out, &args(&["--threads", threads, "--set", "track.settle=\"2 ms\"", "--set", "track.duration=\"3 ms\"", "--set", "track.frames=1"]))
-                .output()
-                .unwrap(),
+            qdem(
+                &out,
+                &args(&[
+                    "--threads",
+                    threads,
+                    "--set",
+                    "track.settle=\"2 ms\"",
+                    "--set",
+                    "track.duration=\"3 ms\"",
+                    "--set",
+                    "track.frames=1",
+                ]),
+            )
+            .output()
+            .unwrap(),
             "short track run",
         );
         files.push(std::fs::read(out.join("sensors.csv")).unwrap());
         files.push(std::fs::read(out.join("track.csv")).unwrap());
     }
-    assert!(files[0] == files[2], "sensors.csv differs between 1 and 2 threads");
-    assert!(files[1] == files[3], "track.csv differs between 1 and 2 threads");
+    assert!(
+        files[0] == files[2],
+        "sensors.csv differs between 1 and 2 threads"
+    );
+    assert!(
+        files[1] == files[3],
+        "track.csv differs between 1 and 2 threads"
+    );
 }
 
 /// Bad input: a load file with a bad row, a missing packing, a step above the stable
@@ -234,15 +317,30 @@ fn bad_track_input_gives_one_line_errors() {
     std::fs::write(&bad, "time_s,Rp1,Rp2\n0,0,0\n0.001,x,0\n").unwrap();
     let out = base.path().join("o");
     let set = |kv: String| vec!["--set".to_string(), kv];
-    let o = qdem(&out, &set(format!("track.loads=\"{}\"", bad.display()))).output().unwrap();
+    let o = qdem(&out, &set(format!("track.loads=\"{}\"", bad.display())))
+        .output()
+        .unwrap();
     assert_one_line_error(&o, 1, &["bad.csv", "line 3", "Rp1"]);
-    let o = qdem(&out, &set("track.packing=\"/nonexistent/packing.toml\"".into())).output().unwrap();
+    let o = qdem(
+        &out,
+        &set("track.packing=\"/nonexistent/packing.toml\"".into()),
+    )
+    .output()
+    .unwrap();
     assert_one_line_error(&o, 1, &["/nonexistent/packing.toml"]);
     // The step is checked once the bodies are built (the report lines come first).
-    let o = qdem(&out, &set("track.dt=\"50 us\"".into())).output().unwrap();
+    let o = qdem(&out, &set("track.dt=\"50 us\"".into()))
+        .output()
+        .unwrap();
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{stderr}");
     assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
-    assert!(stderr.contains("track.dt") && stderr.contains("stable time step"), "{stderr}");
-    assert!(!out.join("summary.json").exists(), "no summary for a refused run");
+    assert!(
+        stderr.contains("track.dt") && stderr.contains("stable time step"),
+        "{stderr}"
+    );
+    assert!(
+        !out.join("summary.json").exists(),
+        "no summary for a refused run"
+    );
 }

@@ -316,7 +316,8 @@ impl<'m> MultiBodySolver<'m> {
             &mut self.sphere_v,
         );
         self.contacts.refresh(&mut state.contacts, &self.sphere_x);
-        let contact = contact_stable_step(self.system, &state.contacts, &self.sphere_x, &state.rigid);
+        let contact =
+            contact_stable_step(self.system, &state.contacts, &self.sphere_x, &state.rigid);
         let s = SystemStability { tetra, contact };
         self.stable = Some(s);
         s
@@ -646,7 +647,9 @@ fn contact_stable_step(
         // I^{-1/2} Rᵀ K_r R I^{-1/2} in the principal frame.
         let r = rigid[b].rotation().to_rotation_matrix();
         let k = r.matrix().transpose() * rotational[b] * r.matrix();
-        let scale = Matrix3::from_diagonal(&Vector3::from(shape.principal_inertia.map(|i| 1.0 / i.sqrt())));
+        let scale = Matrix3::from_diagonal(&Vector3::from(
+            shape.principal_inertia.map(|i| 1.0 / i.sqrt()),
+        ));
         let w = (scale * k * scale).symmetric_eigenvalues().max();
         omega2 = omega2.max(t).max(w);
     }
@@ -686,8 +689,10 @@ mod tests {
             boundary: Boundary::default(),
             rigid: vec![shape],
             bodies: vec![BodyKind::Rigid { index: 0 }],
-            spheres: (0..n as u32).map(|k| SphereAt::Rigid { body: 0, k }).collect(),
-            rigid_spheres: vec![0..n],
+            spheres: (0..n as u32)
+                .map(|k| SphereAt::Rigid { body: 0, k })
+                .collect(),
+            rigid_spheres: std::iter::once(0..n).collect(),
             deformable: Vec::new(),
             insets: false,
             set: SphereSet {
@@ -723,7 +728,10 @@ mod tests {
         let mass = system.rigid[0].mass;
         let expect = mass * g / (4.0 * 1e8);
         let sink = system.rigid[0].centre[2] - state.rigid[0].position[2];
-        assert!((sink / expect - 1.0).abs() < 1e-3, "sink {sink} vs {expect}");
+        assert!(
+            (sink / expect - 1.0).abs() < 1e-3,
+            "sink {sink} vs {expect}"
+        );
         assert!(state.kinetic() < 1e-9 * mass * g * 0.05);
         assert!(state.balance_error().abs() < 1e-3 * state.external_work().abs());
     }
@@ -748,7 +756,11 @@ mod tests {
             let a = g * (theta.sin() - mu * theta.cos());
             if slides {
                 // x = a t²/2 after the springs load (a few 0.1 ms): within 1 %.
-                assert!((x / (0.5 * a * t * t) - 1.0).abs() < 0.01, "x {x} vs {}", 0.5 * a * t * t);
+                assert!(
+                    (x / (0.5 * a * t * t) - 1.0).abs() < 0.01,
+                    "x {x} vs {}",
+                    0.5 * a * t * t
+                );
             } else {
                 // Only the tangential springs' elastic give: m g sinθ / (4 k_t) ≈ 0.3 µm.
                 assert!(x.abs() < 2e-6, "drift {x}");

@@ -529,13 +529,13 @@ impl<'m> QdemSolver<'m> {
             let f = self.hook_forces[i];
             let m = self.model.node_masses()[i];
             let mut f2 = 0.0;
-            for d in 0..3 {
+            for (d, &fd) in f.iter().enumerate() {
                 if primed {
-                    let mean = 0.5 * (f[d] + self.hook_previous[i][d]);
+                    let mean = 0.5 * (fd + self.hook_previous[i][d]);
                     work += mean * self.dt * state.velocities[i][d];
                 }
-                self.forces[i][d] += f[d];
-                f2 += f[d] * f[d];
+                self.forces[i][d] += fd;
+                f2 += fd * fd;
             }
             self.pending_energy += 0.5 * dt2 * f2 / m;
         }

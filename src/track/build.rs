@@ -19,6 +19,10 @@ use crate::pack::Packing;
 use crate::qdem::{Boundary, NodalLoad, QdemMaterial, QdemModel, TimeFunction};
 use crate::{Error, Result};
 
+/// A node sphere while building: (node, material, owner body, deformable index,
+/// (inset, radius)).
+type NodeSphere = (u32, u16, u32, u32, ([f64; 3], f64));
+
 /// Material indices of the sphere law table.
 pub const SLEEPER: u16 = 0;
 /// Deformable ballast.
@@ -168,12 +172,19 @@ pub fn build(
     let radius = 0.5 * t.sphere_diameter.si();
     let inset = t.sphere_centres == SphereCentres::Inset;
     // (node, material, owner body, deformable index, (inset, radius)), ascending by node.
-    let mut node_spheres: Vec<(u32, u16, u32, u32, ([f64; 3], f64))> = Vec::new();
+    let mut node_spheres: Vec<NodeSphere> = Vec::new();
     let mut rigid_radii: Vec<Vec<f64>> = Vec::new();
-    let mut deformable = vec![0..sleeper_world.len() as u32];
+    let mut deformable: Vec<std::ops::Range<u32>> = Vec::new();
+    deformable.push(0..sleeper_world.len() as u32);
     {
         let surface = surface_nodes(&sleeper_mesh);
-        let insets = sphere_insets(&sleeper_world, &sleeper_mesh.boundary, &surface, radius, inset);
+        let insets = sphere_insets(
+            &sleeper_world,
+            &sleeper_mesh.boundary,
+            &surface,
+            radius,
+            inset,
+        );
         let (surface, insets): (Vec<u32>, Vec<([f64; 3], f64)>) = surface
             .iter()
             .zip(insets)
@@ -296,12 +307,12 @@ pub fn build(
     let mut rigid_spheres = Vec::with_capacity(rigid.len());
     for (b, shape) in rigid.iter().enumerate() {
         let start = spheres.len();
-        for k in 0..shape.spheres.len() {
+        for (k, &r) in rigid_radii[b].iter().enumerate() {
             spheres.push(SphereAt::Rigid {
                 body: b as u32,
                 k: k as u32,
             });
-            set.radius.push(rigid_radii[b][k]);
+            set.radius.push(r);
             set.owner.push(rigid_body_ids[b]);
             set.material.push(RIGID_BALLAST);
             set.mass.push(shape.mass);
@@ -545,7 +556,11 @@ fn sphere_insets(
         let Some(unit) = area_normal.try_normalize(0.0) else {
             continue;
         };
-        let edges = [(p[1] - p[0]).norm(), (p[2] - p[1]).norm(), (p[0] - p[2]).norm()];
+        let edges = [
+            (p[1] - p[0]).norm(),
+            (p[2] - p[1]).norm(),
+            (p[0] - p[2]).norm(),
+        ];
         for (c, n) in tri.iter().enumerate() {
             let k = index[n];
             normal[k] += area_normal;

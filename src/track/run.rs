@@ -112,7 +112,8 @@ pub fn run(ctx: &RunContext, force: bool) -> Result<()> {
     let bar = progress_bar(total_steps);
     let mut touching_sum = 0u64;
     let mut max_overlap: f64 = 0.0;
-    out.record(&track, &state, &solver, loads.as_ref(), t.settle.si())?;
+    let settled = settle_steps as f64 * dt;
+    out.record(&track, &state, &solver, loads.as_ref(), settled)?;
     out.frame(&track, &state)?;
     solver.set_damping(if settle_steps > 0 {
         t.settle_damping.si()
@@ -134,7 +135,7 @@ pub fn run(ctx: &RunContext, force: bool) -> Result<()> {
         touching_sum += (solver.last.touching + solver.last.touching_planes) as u64;
         max_overlap = max_overlap.max(solver.last.max_overlap);
         if state.step % sample_every == 0 {
-            out.record(&track, &state, &solver, loads.as_ref(), t.settle.si())?;
+            out.record(&track, &state, &solver, loads.as_ref(), settled)?;
         }
         if state.step % frame_every == 0 || state.step == total_steps {
             out.frame(&track, &state)?;
@@ -163,7 +164,10 @@ pub fn run(ctx: &RunContext, force: bool) -> Result<()> {
         .figure("rigid_stones", sys.rigid.len())
         .figure("tetra", sys.tet_count())
         .figure("spheres", sys.spheres.len())
-        .figure("sphere_diameter_min_m", 2.0 * sys.set.radius.iter().fold(f64::INFINITY, |a, &b| a.min(b)))
+        .figure(
+            "sphere_diameter_min_m",
+            2.0 * sys.set.radius.iter().fold(f64::INFINITY, |a, &b| a.min(b)),
+        )
         .figure("sphere_diameter_max_m", 2.0 * sys.set.max_radius())
         .figure("stable_dt_s", stable.stable())
         .figure("stable_dt_tetra_s", stable.tetra)
@@ -175,7 +179,10 @@ pub fn run(ctx: &RunContext, force: bool) -> Result<()> {
         .figure("sleeper_settlement_m", settlement)
         .figure("settling_sink_m", settled_at)
         .figure("kinetic_energy_after_settling_j", kinetic_after_settling)
-        .figure("sleeper_velocity_after_settling_m_per_s", sinking_after_settling)
+        .figure(
+            "sleeper_velocity_after_settling_m_per_s",
+            sinking_after_settling,
+        )
         .figure("max_overlap_m", max_overlap)
         .figure("final_max_overlap_m", solver.last.max_overlap)
         .figure("final_mean_overlap_m", solver.last.mean_overlap)
@@ -303,9 +310,16 @@ impl Outputs {
 
     /// Mean vertical velocity of the sleeper's bottom nodes (m/s).
     fn sleeper_velocity(&self, track: &Track, state: &MultiState) -> f64 {
-        let Some(s) = &state.deformable else { return 0.0 };
+        let Some(s) = &state.deformable else {
+            return 0.0;
+        };
         let n = track.sleeper_bottom.len().max(1) as f64;
-        track.sleeper_bottom.iter().map(|&i| s.velocities[i as usize][2]).sum::<f64>() / n
+        track
+            .sleeper_bottom
+            .iter()
+            .map(|&i| s.velocities[i as usize][2])
+            .sum::<f64>()
+            / n
     }
 
     fn record(
@@ -317,7 +331,8 @@ impl Outputs {
         settle: f64,
     ) -> Result<()> {
         let sys = &track.system;
-        let clock = state.time - settle;
+        // From the step count, so that the end of settling is exactly 0.
+        let clock = state.step as f64 * solver.dt() - settle;
         let mut row = vec![clock];
         let g = sys.gravity;
         for sensor in &track.sensors {
@@ -360,11 +375,11 @@ impl Outputs {
             row.extend_from_slice(&v);
             row.extend_from_slice(&a);
         }
-        if clock >= -1e-9 * settle.max(1.0) {
+        if clock >= 0.0 {
             self.sensors.push(&row)?;
         }
         let (rp1, rp2) = match loads {
-            Some(l) if state.time >= settle => l.at(state.time - settle),
+            Some(l) if clock >= 0.0 => l.at(clock),
             _ => (0.0, 0.0),
         };
         let strain = state.deformable.as_ref().map_or(0.0, |s| s.energies.strain);
