@@ -190,13 +190,7 @@ impl<'m> QdemSolver<'m> {
         if boundary.gravity.iter().any(|g| !g.is_finite()) {
             return Err(Error::Message("QDEM: gravity is not finite".into()));
         }
-        if let Damping::MassProportional { rate } = options.damping {
-            if !(rate.is_finite() && rate >= 0.0 && rate * dt < 1.0) {
-                return Err(Error::Message(format!(
-                    "QDEM: mass-proportional damping rate {rate} 1/s must be ≥ 0 with rate × dt < 1"
-                )));
-            }
-        }
+        check_damping(options.damping, dt)?;
         if options.check_time_step {
             let s = stability(model);
             if dt > s.stable {
@@ -234,13 +228,7 @@ impl<'m> QdemSolver<'m> {
     /// Changes the numerical damping between steps (e.g. damped settling, then the
     /// undamped run); the same checks as at construction.
     pub fn set_damping(&mut self, damping: Damping) -> Result<()> {
-        if let Damping::MassProportional { rate } = damping {
-            if !(rate.is_finite() && rate >= 0.0 && rate * self.dt < 1.0) {
-                return Err(Error::Message(format!(
-                    "QDEM: mass-proportional damping rate {rate} 1/s must be ≥ 0 with rate × dt < 1"
-                )));
-            }
-        }
+        check_damping(damping, self.dt)?;
         self.options.damping = damping;
         Ok(())
     }
@@ -583,6 +571,18 @@ impl<'m> QdemSolver<'m> {
             }
         }
     }
+}
+
+/// A mass-proportional rate must be finite, ≥ 0, and below 1/dt.
+fn check_damping(damping: Damping, dt: f64) -> Result<()> {
+    if let Damping::MassProportional { rate } = damping {
+        if !(rate.is_finite() && rate >= 0.0 && rate * dt < 1.0) {
+            return Err(Error::Message(format!(
+                "QDEM: mass-proportional damping rate {rate} 1/s must be ≥ 0 with rate × dt < 1"
+            )));
+        }
+    }
+    Ok(())
 }
 
 fn merge(a: NodeSums, b: &NodeSums) -> NodeSums {
