@@ -292,17 +292,7 @@ fn train_load_bad_values_are_one_line_errors() {
 
 // ---------------------------------------------------------------- spectra
 
-const QUANTITIES: [&str; 9] = [
-    "ux_m",
-    "uy_m",
-    "uz_m",
-    "vx_m_per_s",
-    "vy_m_per_s",
-    "vz_m_per_s",
-    "ax_m_per_s2",
-    "ay_m_per_s2",
-    "az_m_per_s2",
-];
+use ballast::post::track_sensors::QUANTITIES;
 
 /// Writes a sensor CSV sampled at `dt` from 0 for `n` samples; `values(sensor, t)` gives
 /// the nine quantities of each sensor. `skip` drops one column (header and rows).

@@ -325,6 +325,24 @@ impl<'m> MultiBodySolver<'m> {
 
     /// Computes forces and energies of a fresh state.
     pub fn prime(&mut self, state: &mut MultiState) -> Result<()> {
+        self.deformable_pass(state, true)?;
+        let system = self.system;
+        let e = &mut state.energies;
+        e.spring = self.last.spring_energy;
+        e.rigid_kinetic = state
+            .rigid
+            .iter()
+            .zip(&system.rigid)
+            .map(|(r, s)| r.kinetic_energy(s))
+            .sum();
+        e.initial = state_energy(state.deformable.as_ref(), e);
+        self.primed = true;
+        Ok(())
+    }
+
+    /// The QDEM part of priming (`prime`) or of a step, with the contacts as its force
+    /// hook (without QDEM bodies, the contacts alone).
+    fn deformable_pass(&mut self, state: &mut MultiState, prime: bool) -> Result<()> {
         let MultiBodySolver {
             system,
             qdem,
@@ -340,7 +358,6 @@ impl<'m> MultiBodySolver<'m> {
             deformable,
             rigid,
             contacts: cstate,
-            energies,
             ..
         } = state;
         let mut hook = |_t: f64, x: &[[f64; 3]], v: &[[f64; 3]], f: &mut [[f64; 3]]| {
@@ -349,18 +366,13 @@ impl<'m> MultiBodySolver<'m> {
             );
         };
         match (qdem.as_mut(), deformable.as_mut()) {
-            (Some(q), Some(s)) => q.prime_with(s, Some(&mut hook))?,
-            _ => hook(0.0, &[], &[], &mut []),
+            (Some(q), Some(s)) if prime => q.prime_with(s, Some(&mut hook)),
+            (Some(q), Some(s)) => q.step_with(s, Some(&mut hook)),
+            _ => {
+                hook(0.0, &[], &[], &mut []);
+                Ok(())
+            }
         }
-        energies.spring = last.spring_energy;
-        energies.rigid_kinetic = rigid
-            .iter()
-            .zip(&system.rigid)
-            .map(|(r, s)| r.kinetic_energy(s))
-            .sum();
-        energies.initial = state_energy(deformable.as_ref(), energies);
-        self.primed = true;
-        Ok(())
     }
 
     /// Advances the system by one step.
@@ -369,62 +381,35 @@ impl<'m> MultiBodySolver<'m> {
             self.prime(state)?;
         }
         self.primed = true;
-        let MultiBodySolver {
-            system,
-            qdem,
-            contacts,
-            dt,
-            sphere_x,
-            sphere_v,
-            sphere_f,
-            last,
-            damping,
-            ..
-        } = self;
-        let (dt, damping) = (*dt, *damping);
+        let (system, dt, damping) = (self.system, self.dt, self.damping);
         let half = 0.5 * dt;
         let g = system.gravity;
-        let MultiState {
-            deformable,
-            rigid,
-            contacts: cstate,
-            energies,
-            time,
-            step,
-        } = state;
         let mut gravity_work = 0.0;
         let mut damped = 0.0;
-        for (r, shape) in rigid.iter_mut().zip(&system.rigid) {
+        for (r, shape) in state.rigid.iter_mut().zip(&system.rigid) {
             damped += r.kick(shape, g, half, damping);
             r.drift(shape, dt);
             gravity_work += shape.mass
                 * dt
                 * (g[0] * r.velocity[0] + g[1] * r.velocity[1] + g[2] * r.velocity[2]);
         }
-        let mut hook = |_t: f64, x: &[[f64; 3]], v: &[[f64; 3]], f: &mut [[f64; 3]]| {
-            *last = contact_forces(
-                system, contacts, cstate, rigid, x, v, f, dt, sphere_x, sphere_v, sphere_f,
-            );
-        };
-        match (qdem.as_mut(), deformable.as_mut()) {
-            (Some(q), Some(s)) => q.step_with(s, Some(&mut hook))?,
-            _ => hook(*time + dt, &[], &[], &mut []),
-        }
+        self.deformable_pass(state, false)?;
         let mut kinetic = 0.0;
         let mut finite = true;
-        for (r, shape) in rigid.iter_mut().zip(&system.rigid) {
+        for (r, shape) in state.rigid.iter_mut().zip(&system.rigid) {
             damped += r.kick(shape, g, half, damping);
             kinetic += r.kinetic_energy(shape);
             finite &= r.position.iter().chain(&r.velocity).all(|c| c.is_finite());
         }
-        *time += dt;
-        *step += 1;
-        energies.rigid_kinetic = kinetic;
-        energies.rigid_gravity_work += gravity_work;
-        energies.spring = last.spring_energy;
-        energies.slip_dissipated += last.slip_dissipated;
-        energies.damping_dissipated += last.damping_dissipated;
-        energies.numerical_damping += damped;
+        state.time += dt;
+        state.step += 1;
+        let (e, last) = (&mut state.energies, &self.last);
+        e.rigid_kinetic = kinetic;
+        e.rigid_gravity_work += gravity_work;
+        e.spring = last.spring_energy;
+        e.slip_dissipated += last.slip_dissipated;
+        e.damping_dissipated += last.damping_dissipated;
+        e.numerical_damping += damped;
         let work = state.external_work();
         state.energies.most_work = state.energies.most_work.max(work);
         self.check(state, finite)

@@ -28,6 +28,7 @@ use super::scene::{DtSpec, TrackScene};
 use crate::dem::{MultiBodySolver, MultiState};
 use crate::output::{write_json, CsvSeries, Grid, PvdWriter};
 use crate::pack::Packing;
+use crate::post::track_sensors::QUANTITIES;
 use crate::qdem::von_mises;
 use crate::scene::{PhaseTimer, RunContext, Summary};
 use crate::{Error, Result};
@@ -250,17 +251,9 @@ struct Outputs {
 impl Outputs {
     fn create(ctx: &RunContext, track: &Track) -> Result<Self> {
         let mut columns = vec!["time_s".to_string()];
+        // The columns `ballast-post spectra` reads, in its order (u, v, a; x, y, z).
         for s in &track.sensors {
-            for q in ["u", "v", "a"] {
-                let unit = match q {
-                    "u" => "m",
-                    "v" => "m_per_s",
-                    _ => "m_per_s2",
-                };
-                for c in ["x", "y", "z"] {
-                    columns.push(format!("{}_{q}{c}_{unit}", s.name));
-                }
-            }
+            columns.extend(QUANTITIES.iter().map(|q| format!("{}_{q}", s.name)));
         }
         let refs: Vec<&str> = columns.iter().map(String::as_str).collect();
         let sensors = CsvSeries::create(ctx.out_dir.join("sensors.csv"), &refs)?;
