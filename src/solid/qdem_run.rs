@@ -118,7 +118,7 @@ pub fn run(ctx: &RunContext, force: bool) -> Result<()> {
 }
 
 /// A line of the run's report on stdout; a closed stdout (`| head`) is not an error.
-fn say(line: std::fmt::Arguments) {
+pub(crate) fn say(line: std::fmt::Arguments) {
     use std::io::Write as _;
     let _ = writeln!(std::io::stdout().lock(), "{line}");
 }
@@ -303,7 +303,7 @@ fn run_case(
     })
 }
 
-fn progress_bar(steps: u64, label: &str) -> ProgressBar {
+pub(crate) fn progress_bar(steps: u64, label: &str) -> ProgressBar {
     let bar = ProgressBar::with_draw_target(Some(steps), ProgressDrawTarget::stderr_with_hz(4));
     bar.set_style(
         ProgressStyle::with_template("{prefix}{bar:40} {pos}/{len} steps, {per_sec}, eta {eta}")

@@ -19,7 +19,6 @@
 
 use std::time::Instant;
 
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde_json::json;
 
 use super::build::{build, SensorAt, Track};
@@ -31,6 +30,7 @@ use crate::pack::Packing;
 use crate::post::track_sensors::QUANTITIES;
 use crate::qdem::von_mises;
 use crate::scene::{PhaseTimer, RunContext, Summary};
+use crate::solid::qdem_run::{progress_bar, say};
 use crate::{Error, Result};
 
 /// Whether a scene file is a track scene (has a `[track]` table).
@@ -110,7 +110,7 @@ pub fn run(ctx: &RunContext, force: bool) -> Result<()> {
 
     let mut out = Outputs::create(ctx, &track)?;
     let started = Instant::now();
-    let bar = progress_bar(total_steps);
+    let bar = progress_bar(total_steps, "track ");
     let mut touching_sum = 0u64;
     let mut max_overlap: f64 = 0.0;
     let settled = settle_steps as f64 * dt;
@@ -476,18 +476,4 @@ fn peak_memory_mib() -> Option<f64> {
     let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
     let kib: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kib / 1024.0)
-}
-
-fn progress_bar(steps: u64) -> ProgressBar {
-    let bar = ProgressBar::with_draw_target(Some(steps), ProgressDrawTarget::stderr_with_hz(4));
-    bar.set_style(
-        ProgressStyle::with_template("track {bar:40} {pos}/{len} steps, {per_sec}, eta {eta}")
-            .expect("valid template"),
-    );
-    bar
-}
-
-fn say(line: std::fmt::Arguments) {
-    use std::io::Write as _;
-    let _ = writeln!(std::io::stdout().lock(), "{line}");
 }

@@ -269,7 +269,7 @@ fn default_mu() -> f64 {
 impl TrackScene {
     /// A path of the scene resolved against the scene file's directory.
     pub fn resolve(scene_path: &Path, file: &Path) -> PathBuf {
-        scene_path.parent().unwrap_or(Path::new(".")).join(file)
+        crate::solid::scene::SolidScene::resolve(scene_path, file)
     }
 }
 
