@@ -118,10 +118,14 @@ pub struct QdemCli {
 /// Runs `ballast-qdem`.
 pub fn run_qdem(cli: QdemCli) -> crate::Result<()> {
     let ctx = cli.run.context()?;
-    if crate::track::is_track_scene(&ctx.scene_path) {
-        return crate::track::run(&ctx, cli.force);
-    }
-    crate::solid::qdem_run::run(&ctx, cli.force)
+    let force = cli.force;
+    ctx.run_on_pool(|c| {
+        if crate::track::is_track_scene(&c.scene_path) {
+            crate::track::run(c, force)
+        } else {
+            crate::solid::qdem_run::run(c, force)
+        }
+    })?
 }
 
 /// `ballast-fem`: the linear-tetra reference solver.

@@ -23,7 +23,15 @@ impl Period {
         let mut d = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
         if let Some(p) = period {
             let k = p.axis;
-            d[k] -= p.length * (d[k] / p.length).round();
+            // The nearest image, without a libm call: the same bits as d − L·round(d/L)
+            // while |d| < 1.5 L, which unwrapped positions within the cell always give.
+            let half = 0.5 * p.length;
+            while d[k] > half {
+                d[k] -= p.length;
+            }
+            while d[k] < -half {
+                d[k] += p.length;
+            }
         }
         d
     }

@@ -208,6 +208,7 @@ pub fn run(ctx: &RunContext, force: bool) -> Result<()> {
         )
         .figure("simulated_s_per_wall_hour", simulated / stepping * 3600.0)
         .figure("list_rebuilds", state.contacts.rebuilds)
+        .figure("candidate_pairs", solver.last.candidates)
         .figure("peak_memory_mib", peak_memory_mib())
         .figure(
             "sensors",
