@@ -282,42 +282,117 @@ fn the_spectra_of_the_quick_run() {
     }
 }
 
-/// The same run on 1 and 2 threads gives the same sensor file, byte for byte
-/// (deterministic contact gather, coloured tetra assembly).
+/// A short run (1 ms settling, 3 ms loaded, a checkpoint every 1000 steps) gives the
+/// same files, byte for byte, on 1 and 2 threads (deterministic contact gather,
+/// coloured tetra assembly), and when killed by SIGKILL after a checkpoint and resumed
+/// with `--resume` (no CSV row or VTK frame lost or written twice).
+#[cfg(unix)]
 #[test]
-fn the_track_run_does_not_depend_on_the_thread_count() {
+fn the_track_run_does_not_depend_on_the_thread_count_and_resumes_bit_for_bit() {
     let base = tempfile::tempdir().unwrap();
-    let mut files = Vec::new();
-    for threads in ["1", "2"] {
-        let out = base.path().join(threads);
+    let short = |threads: &str| {
+        args(&[
+            "--threads",
+            threads,
+            "--set",
+            "track.settle=\"1 ms\"",
+            "--set",
+            "track.duration=\"3 ms\"",
+            "--set",
+            "track.frames=4",
+            "--set",
+            "track.checkpoint_every=1000",
+        ])
+    };
+    let run = |name: &str, threads: &str| {
+        let out = base.path().join(name);
         ok(
-            qdem(
-                &out,
-                &args(&[
-                    "--threads",
-                    threads,
-                    "--set",
-                    "track.settle=\"2 ms\"",
-                    "--set",
-                    "track.duration=\"3 ms\"",
-                    "--set",
-                    "track.frames=1",
-                ]),
-            )
-            .output()
-            .unwrap(),
+            qdem(&out, &short(threads)).output().unwrap(),
             "short track run",
         );
-        files.push(std::fs::read(out.join("sensors.csv")).unwrap());
-        files.push(std::fs::read(out.join("track.csv")).unwrap());
+        out
+    };
+    let whole = run("two", "2");
+    let one = run("one", "1");
+    let killed = base.path().join("killed");
+    let mut child = qdem(&killed, &short("2"))
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let checkpoint = killed.join("checkpoint.bin");
+    let started = std::time::Instant::now();
+    while !checkpoint.exists() {
+        assert!(started.elapsed().as_secs() < 300, "no checkpoint written");
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "finished before a checkpoint"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(20));
     }
+    // Past the checkpoint (rows to cut back), well before the end (2840 more steps).
+    std::thread::sleep(std::time::Duration::from_millis(400));
     assert!(
-        files[0] == files[2],
-        "sensors.csv differs between 1 and 2 threads"
+        child.try_wait().unwrap().is_none(),
+        "finished before the kill"
     );
-    assert!(
-        files[1] == files[3],
-        "track.csv differs between 1 and 2 threads"
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let resumed = qdem(&killed, &short("2"))
+        .arg("--resume")
+        .arg(&killed)
+        .output()
+        .unwrap();
+    let resumed = ok(resumed, "resumed track run");
+    assert!(String::from_utf8_lossy(&resumed.stdout).contains("resumed from"));
+    for file in [
+        "sensors.csv",
+        "track.csv",
+        "deformable.pvd",
+        "rigid.pvd",
+        "checkpoint.bin",
+        "frames/deformable_0004.vtu",
+        "frames/rigid_0004.vtu",
+    ] {
+        let whole = std::fs::read(whole.join(file)).unwrap();
+        assert!(
+            whole == std::fs::read(one.join(file)).unwrap(),
+            "{file} differs between 1 and 2 threads"
+        );
+        assert!(
+            whole == std::fs::read(killed.join(file)).unwrap(),
+            "{file} differs after the resume"
+        );
+    }
+    let (a, b) = (figures(&whole), figures(&killed));
+    for key in [
+        "sleeper_settlement_m",
+        "settling_sink_m",
+        "kinetic_energy_after_settling_j",
+        "max_overlap_m",
+        "energy_balance_error_j",
+        "final_contacts",
+        "list_rebuilds",
+    ] {
+        assert_eq!(a[key], b[key], "{key} after the resume");
+    }
+    // Resuming with other arguments, or from a damaged checkpoint, is one line.
+    let other = qdem(&killed, &args(&["--set", "track.duration=\"2 ms\""]))
+        .arg("--resume")
+        .arg(&killed)
+        .output()
+        .unwrap();
+    assert_one_line_error(&other, 1, &["checkpoint.bin", "another scene"]);
+    std::fs::write(&checkpoint, b"not a checkpoint").unwrap();
+    let damaged = qdem(&killed, &short("2"))
+        .arg("--resume")
+        .arg(&killed)
+        .output()
+        .unwrap();
+    assert_one_line_error(
+        &damaged,
+        1,
+        &["checkpoint.bin", "not a ballast-qdem track checkpoint"],
     );
 }
 

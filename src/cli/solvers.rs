@@ -77,20 +77,7 @@ pub fn run_nscd(cli: NscdCli) -> crate::Result<()> {
             _,
         ) => super::fc3d::run(&file, tol, max_iter, json),
         (None, Some(run)) => {
-            let mut ctx = run.context()?;
-            let resume = cli.resume.is_some();
-            if let Some(dir) = cli.resume {
-                if run.out.as_ref().is_some_and(|out| *out != dir) {
-                    return Err(crate::Error::Message(format!(
-                        "--resume {} and --out {}: a run resumes in its own directory",
-                        dir.display(),
-                        run.out
-                            .as_ref()
-                            .map_or(String::new(), |o| o.display().to_string())
-                    )));
-                }
-                ctx.out_dir = dir;
-            }
+            let (ctx, resume) = run.resumable_context(cli.resume.as_deref())?;
             ctx.run_on_pool(|c| crate::nscd::run::run_with(c, resume))?
         }
         (None, None) => Err(crate::Error::Message(
@@ -110,6 +97,10 @@ pub fn run_nscd(cli: NscdCli) -> crate::Result<()> {
 pub struct QdemCli {
     #[command(flatten)]
     run: RunArgs,
+    /// Continue a killed track run from the checkpoint in its output directory DIR
+    /// (give the killed run's scene, --preset and --set again; implies --out DIR).
+    #[arg(long, value_name = "DIR")]
+    resume: Option<PathBuf>,
     /// Run with a time step above the stable one (the run may blow up).
     #[arg(long)]
     force: bool,
@@ -117,11 +108,16 @@ pub struct QdemCli {
 
 /// Runs `ballast-qdem`.
 pub fn run_qdem(cli: QdemCli) -> crate::Result<()> {
-    let ctx = cli.run.context()?;
+    let (ctx, resume) = cli.run.resumable_context(cli.resume.as_deref())?;
     let force = cli.force;
     ctx.run_on_pool(|c| {
         if crate::track::is_track_scene(&c.scene_path) {
-            crate::track::run(c, force)
+            crate::track::run(c, force, resume)
+        } else if resume {
+            Err(crate::Error::Message(format!(
+                "--resume: {} is not a track scene (only track scenes checkpoint)",
+                c.scene_path.display()
+            )))
         } else {
             crate::solid::qdem_run::run(c, force)
         }

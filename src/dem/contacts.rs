@@ -210,6 +210,12 @@ impl Contacts {
         true
     }
 
+    /// Takes up a saved contact state (resuming a run): indexes its pairs for the
+    /// gather without rebuilding the list, so the run goes on as if never stopped.
+    pub fn restore(&mut self, state: &ContactState) {
+        self.index_gather(&state.pairs, state.anchors.len());
+    }
+
     /// The geometric overlap of a pair (m; negative: a gap).
     fn overlap(&self, p: &PairState, positions: &[[f64; 3]]) -> f64 {
         let set = &self.set;

@@ -323,6 +323,25 @@ impl<'m> MultiBodySolver<'m> {
         s
     }
 
+    /// What the solver carries from one step to the next besides the [`MultiState`]:
+    /// the contact forces on the QDEM nodes at the last step (their work over the next
+    /// step is trapezoidal). A checkpoint stores it with the state.
+    pub fn memory(&self) -> Vec<[f64; 3]> {
+        self.qdem
+            .as_ref()
+            .map_or_else(Vec::new, |q| q.hook_memory().to_vec())
+    }
+
+    /// Continues from a saved `state` and [`Self::memory`] (a resumed run): the next
+    /// [`Self::step`] gives the bits the uninterrupted run's would.
+    pub fn resume(&mut self, state: &MultiState, memory: Vec<[f64; 3]>) {
+        self.contacts.restore(&state.contacts);
+        if let Some(q) = self.qdem.as_mut() {
+            q.restore_hook_memory(memory);
+        }
+        self.primed = true;
+    }
+
     /// Computes forces and energies of a fresh state.
     pub fn prime(&mut self, state: &mut MultiState) -> Result<()> {
         self.deformable_pass(state, true)?;

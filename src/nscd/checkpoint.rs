@@ -7,9 +7,8 @@
 //! The scene, the bodies' shapes and the prescribed motions come from the scene file
 //! again; the checkpoint keeps the merged scene text and refuses to resume another.
 //!
-//! The file (`checkpoint.bin`, bincode: f64 kept bit for bit) is written whole to a
-//! temporary file and renamed over the previous one, so a run killed at any moment
-//! leaves the previous checkpoint or the new one, never half of one. Resuming truncates
+//! The file is written and read by [`crate::output::checkpoint`] (`checkpoint.bin`,
+//! bincode, atomic rename, tag and scene checked). Resuming truncates
 //! the CSV series and the `.pvd` collections back to the checkpoint's time, so a
 //! resumed run's files are the uninterrupted run's files.
 
@@ -25,8 +24,7 @@ use crate::{Error, Result};
 /// The format tag.
 pub const CHECKPOINT_FORMAT: &str = "ballast-nscd checkpoint 1";
 
-/// The file name in the output directory.
-pub const CHECKPOINT_FILE: &str = "checkpoint.bin";
+pub use crate::output::CHECKPOINT_FILE;
 
 /// One body's state.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -124,9 +122,7 @@ impl<T> Checkpoint<T> {
 impl<T: Serialize> Checkpoint<T> {
     /// Writes the checkpoint atomically to `path`.
     pub fn write(&self, path: &Path) -> Result<()> {
-        let bytes = bincode::serialize(self)
-            .map_err(|e| Error::invalid(path, format!("cannot encode the checkpoint: {e}")))?;
-        crate::output::write_atomic(path, &bytes)
+        crate::output::write_checkpoint(path, self)
     }
 }
 
@@ -134,29 +130,6 @@ impl<T: DeserializeOwned> Checkpoint<T> {
     /// Reads a checkpoint and checks it was written for `scene` (the merged scene
     /// text); errors are one line naming the file.
     pub fn read(path: &Path, scene: &str) -> Result<Self> {
-        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-        let checkpoint: Checkpoint<T> = bincode::deserialize(&bytes).map_err(|e| {
-            Error::invalid(
-                path,
-                format!("not a {CHECKPOINT_FORMAT} file of this version ({e})"),
-            )
-        })?;
-        if checkpoint.format != CHECKPOINT_FORMAT {
-            return Err(Error::invalid(
-                path,
-                format!(
-                    "format \"{}\", expected \"{CHECKPOINT_FORMAT}\"",
-                    checkpoint.format
-                ),
-            ));
-        }
-        if checkpoint.scene != scene {
-            return Err(Error::invalid(
-                path,
-                "was written for another scene, preset or --set (resume with the same \
-                 arguments as the killed run)",
-            ));
-        }
-        Ok(checkpoint)
+        crate::output::read_checkpoint(path, CHECKPOINT_FORMAT, scene)
     }
 }

@@ -19,6 +19,7 @@
 //! ```
 
 pub mod atomic;
+pub mod checkpoint;
 pub mod csv;
 pub mod grid;
 pub mod json;
@@ -26,6 +27,7 @@ pub mod pvd;
 pub mod vtu;
 
 pub use atomic::{write_atomic, AtomicFile};
+pub use checkpoint::{read_checkpoint, write_checkpoint, CHECKPOINT_FILE};
 pub use csv::CsvSeries;
 pub use grid::{points_from_nalgebra, CellKind, Field, FieldValues, Grid};
 pub use json::write_json;

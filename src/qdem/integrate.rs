@@ -220,6 +220,17 @@ impl<'m> QdemSolver<'m> {
         })
     }
 
+    /// The hook forces of the last step, which the next step's trapezoidal hook work
+    /// uses (what a checkpoint keeps of the solver besides the [`State`]).
+    pub fn hook_memory(&self) -> &[Vec3] {
+        &self.hook_forces
+    }
+
+    /// Puts back the hook forces saved by [`Self::hook_memory`] (resuming a run).
+    pub fn restore_hook_memory(&mut self, forces: Vec<Vec3>) {
+        self.hook_forces = forces;
+    }
+
     /// The time step (s).
     pub fn dt(&self) -> f64 {
         self.dt

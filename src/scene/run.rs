@@ -72,6 +72,27 @@ impl RunArgs {
     }
 }
 
+impl RunArgs {
+    /// [`Self::context`] for a run that may resume (`--resume DIR`): the context writes
+    /// to DIR (a run resumes in its own directory; an `--out` elsewhere is an error),
+    /// and the flag says whether to resume.
+    pub fn resumable_context(&self, resume: Option<&Path>) -> Result<(RunContext, bool)> {
+        let mut ctx = self.context()?;
+        let Some(dir) = resume else {
+            return Ok((ctx, false));
+        };
+        if let Some(out) = self.out.as_ref().filter(|out| out.as_path() != dir) {
+            return Err(Error::Message(format!(
+                "--resume {} and --out {}: a run resumes in its own directory",
+                dir.display(),
+                out.display()
+            )));
+        }
+        ctx.out_dir = dir.to_path_buf();
+        Ok((ctx, true))
+    }
+}
+
 /// `results/<scene>` or `results/<scene>-<preset>`, relative to the working directory.
 pub fn default_out_dir(scene_name: &str, preset: Option<&str>) -> PathBuf {
     let dir = match preset {

@@ -19,13 +19,16 @@
 
 use std::time::Instant;
 
+use serde::{Deserialize, Serialize};
 use serde_json::json;
 
 use super::build::{build, SensorAt, Track};
 use super::loads::RailSeatLoads;
 use super::scene::{DtSpec, TrackScene};
 use crate::dem::{MultiBodySolver, MultiState};
-use crate::output::{write_json, CsvSeries, Grid, PvdWriter};
+use crate::output::{
+    read_checkpoint, write_checkpoint, write_json, CsvSeries, Grid, PvdWriter, CHECKPOINT_FILE,
+};
 use crate::pack::Packing;
 use crate::post::track_sensors::QUANTITIES;
 use crate::qdem::von_mises;
@@ -41,11 +44,21 @@ pub fn is_track_scene(scene: &std::path::Path) -> bool {
         .is_some_and(|t| t.contains_key("track"))
 }
 
-/// Runs the track scene of `ctx`; `force` allows a step above the stable one.
-pub fn run(ctx: &RunContext, force: bool) -> Result<()> {
+/// Runs the track scene of `ctx`; `force` allows a step above the stable one; with
+/// `resume`, from the checkpoint in the output directory (written by a run of the same
+/// scene, preset and overrides), cutting the CSV and `.pvd` series back to it.
+pub fn run(ctx: &RunContext, force: bool, resume: bool) -> Result<()> {
     let threads = ctx.configure_threads()?;
     let mut timer = PhaseTimer::new();
     let (scene, inputs): (TrackScene, _) = timer.time("read scene", || ctx.load_scene())?;
+    let scene_text = toml::to_string(&inputs)
+        .map_err(|e| Error::Message(format!("cannot write the merged scene: {e}")))?;
+    let resumed: Option<TrackCheckpoint> = if resume {
+        let path = ctx.out_dir.join(CHECKPOINT_FILE);
+        Some(read_checkpoint(&path, CHECKPOINT_FORMAT, &scene_text)?)
+    } else {
+        None
+    };
     let packing_path = TrackScene::resolve(&ctx.scene_path, &scene.track.packing);
     let packing = Packing::read(&packing_path)?;
     let loads = match &scene.track.loads {
@@ -108,38 +121,94 @@ pub fn run(ctx: &RunContext, force: bool) -> Result<()> {
     let total_steps = settle_steps + (t.duration.si() / dt).ceil() as u64;
     let frame_every = (total_steps / t.frames.max(1) as u64).max(1);
 
-    let mut out = Outputs::create(ctx, &track)?;
-    let started = Instant::now();
-    let bar = progress_bar(total_steps, "track ");
-    let mut touching_sum = 0u64;
-    let mut max_overlap: f64 = 0.0;
     let settled = settle_steps as f64 * dt;
-    out.record(&track, &state, &solver, loads.as_ref(), settled)?;
-    out.frame(&track, &state)?;
-    solver.set_damping(if settle_steps > 0 {
+    let checkpoint_path = ctx.out_dir.join(CHECKPOINT_FILE);
+    let mut figures = LoopFigures {
+        kinetic_after_settling: state.kinetic(),
+        ..LoopFigures::default()
+    };
+    let mut out = match resumed {
+        Some(c) => {
+            // The scene text matched; the packing it names must still give these bodies.
+            let nodes = |s: &MultiState| s.deformable.as_ref().map_or(0, |d| d.positions.len());
+            if c.state.rigid.len() != state.rigid.len()
+                || nodes(&c.state) != nodes(&state)
+                || c.state.contacts.anchors.len() != sys.spheres.len()
+            {
+                return Err(Error::invalid(
+                    &checkpoint_path,
+                    format!(
+                        "holds {} rigid bodies and {} nodes, the scene now builds {} and {} \
+                         (was the packing {} rewritten?)",
+                        c.state.rigid.len(),
+                        nodes(&c.state),
+                        state.rigid.len(),
+                        nodes(&state),
+                        packing_path.display()
+                    ),
+                ));
+            }
+            let clock = c.state.step as f64 * dt - settled;
+            let out = Outputs::open(ctx, &track, Some((clock, c.state.time, c.frames)))?;
+            state = c.state;
+            solver.resume(&state, c.memory);
+            figures = c.figures;
+            say(format_args!(
+                "ballast-qdem: resumed from {} at step {} (t = {:.6} s)",
+                checkpoint_path.display(),
+                state.step,
+                state.time
+            ));
+            out
+        }
+        None => {
+            let mut out = Outputs::open(ctx, &track, None)?;
+            out.record(&track, &state, &solver, loads.as_ref(), settled)?;
+            out.frame(&track, &state)?;
+            out
+        }
+    };
+    let started = Instant::now();
+    let (first_step, touching_before) = (state.step, figures.touching_sum);
+    let bar = progress_bar(total_steps, "track ");
+    bar.set_position(state.step);
+    solver.set_damping(if state.step < settle_steps {
         t.settle_damping.si()
     } else {
         0.0
     })?;
-    let mut settled_at = 0.0;
-    let mut kinetic_after_settling = state.kinetic();
-    let mut sinking_after_settling = 0.0;
     while state.step < total_steps {
         if state.step == settle_steps && settle_steps > 0 {
             solver.set_damping(0.0)?;
-            settled_at = out.settlement(&track, &state);
-            kinetic_after_settling = state.kinetic();
-            sinking_after_settling = out.sleeper_velocity(&track, &state);
+            figures.settled_at = out.settlement(&track, &state);
+            figures.kinetic_after_settling = state.kinetic();
+            figures.sinking_after_settling = out.sleeper_velocity(&track, &state);
             timer.add("settling", started.elapsed());
         }
         solver.step(&mut state)?;
-        touching_sum += (solver.last.touching + solver.last.touching_planes) as u64;
-        max_overlap = max_overlap.max(solver.last.max_overlap);
+        figures.touching_sum += (solver.last.touching + solver.last.touching_planes) as u64;
+        figures.max_overlap = figures.max_overlap.max(solver.last.max_overlap);
         if state.step % sample_every == 0 {
             out.record(&track, &state, &solver, loads.as_ref(), settled)?;
         }
         if state.step % frame_every == 0 || state.step == total_steps {
             out.frame(&track, &state)?;
+        }
+        let every = t.checkpoint_every;
+        if every > 0 && (state.step % every == 0 || state.step == total_steps) {
+            let clock = Instant::now();
+            write_checkpoint(
+                &checkpoint_path,
+                &TrackCheckpoint {
+                    format: CHECKPOINT_FORMAT.to_string(),
+                    scene: scene_text.clone(),
+                    state: state.clone(),
+                    memory: solver.memory(),
+                    figures,
+                    frames: out.frames,
+                },
+            )?;
+            out.frame_s += clock.elapsed().as_secs_f64();
         }
         if state.step % 256 == 0 {
             bar.set_position(state.step);
@@ -148,10 +217,22 @@ pub fn run(ctx: &RunContext, force: bool) -> Result<()> {
     bar.finish_and_clear();
     let stepping = started.elapsed().as_secs_f64() - out.frame_s;
     timer.add("stepping", std::time::Duration::from_secs_f64(stepping));
-    timer.add("frames", std::time::Duration::from_secs_f64(out.frame_s));
+    timer.add(
+        "frames and checkpoints",
+        std::time::Duration::from_secs_f64(out.frame_s),
+    );
+    // Throughput of this process's steps (a resumed run counts from its checkpoint).
+    let touching_sum = figures.touching_sum - touching_before;
+    let steps_here = (state.step - first_step) as f64;
+    let LoopFigures {
+        max_overlap,
+        settled_at,
+        kinetic_after_settling,
+        sinking_after_settling,
+        ..
+    } = figures;
 
     let settlement = out.settlement(&track, &state) - settled_at;
-    let steps = state.step as f64;
     let simulated = state.time;
     let balance = state.balance_error();
     let scale = state
@@ -204,9 +285,12 @@ pub fn run(ctx: &RunContext, force: bool) -> Result<()> {
         .figure("contact_pairs_per_s", touching_sum as f64 / stepping)
         .figure(
             "tetra_updates_per_s",
-            steps * sys.tet_count() as f64 / stepping,
+            steps_here * sys.tet_count() as f64 / stepping,
         )
-        .figure("simulated_s_per_wall_hour", simulated / stepping * 3600.0)
+        .figure(
+            "simulated_s_per_wall_hour",
+            steps_here * dt / stepping * 3600.0,
+        )
         .figure("list_rebuilds", state.contacts.rebuilds)
         .figure("candidate_pairs", solver.last.candidates)
         .figure("peak_memory_mib", peak_memory_mib())
@@ -222,10 +306,10 @@ pub fn run(ctx: &RunContext, force: bool) -> Result<()> {
     write_json(ctx.out_dir.join("summary.json"), &summary.to_json())?;
     say(format_args!(
         "ballast-qdem: {} steps ({simulated:.4} s) in {stepping:.1} s — {:.3e} contact pairs/s, {:.3e} tetra updates/s, {:.3} simulated s per wall hour",
-        state.step,
+        state.step - first_step,
         touching_sum as f64 / stepping,
-        steps * sys.tet_count() as f64 / stepping,
-        simulated / stepping * 3600.0
+        steps_here * sys.tet_count() as f64 / stepping,
+        steps_here * dt / stepping * 3600.0
     ));
     say(format_args!(
         "ballast-qdem: sleeper settlement {:.3e} m; deepest sphere overlap {max_overlap:.3e} m; energy balance error {:.2e} of the energy scale",
@@ -239,6 +323,58 @@ pub fn run(ctx: &RunContext, force: bool) -> Result<()> {
     Ok(())
 }
 
+/// The columns of `track.csv`.
+const TRACK_COLUMNS: [&str; 12] = [
+    "time_s",
+    "rp1_n",
+    "rp2_n",
+    "sleeper_settlement_m",
+    "contacts",
+    "max_overlap_m",
+    "kinetic_j",
+    "strain_j",
+    "spring_j",
+    "dissipated_j",
+    "external_work_j",
+    "balance_error_j",
+];
+
+/// The format tag of a track checkpoint.
+const CHECKPOINT_FORMAT: &str = "ballast-qdem track checkpoint 1";
+
+/// Everything a killed track run needs to go on bit for bit (written by
+/// [`write_checkpoint`]; the scene, bodies and loads come from the scene again).
+#[derive(Serialize, Deserialize)]
+struct TrackCheckpoint {
+    /// [`CHECKPOINT_FORMAT`].
+    format: String,
+    /// The merged scene (after preset and overrides), as TOML text.
+    scene: String,
+    /// The system after the checkpoint's step.
+    state: MultiState,
+    /// [`MultiBodySolver::memory`].
+    memory: Vec<[f64; 3]>,
+    /// The run's running figures.
+    figures: LoopFigures,
+    /// VTK frames written (the initial one included).
+    frames: usize,
+}
+
+/// Running figures of the time loop that go into the summary.
+#[derive(Debug, Clone, Copy, Default, Serialize, Deserialize)]
+struct LoopFigures {
+    /// Σ over steps of the touching pairs (for contact pairs per second).
+    touching_sum: u64,
+    /// Deepest sphere overlap seen (m).
+    max_overlap: f64,
+    /// Sleeper settlement at the end of settling (m).
+    settled_at: f64,
+    /// Kinetic energy at the end of settling (J).
+    kinetic_after_settling: f64,
+    /// Sleeper's vertical velocity at the end of settling (m/s).
+    sinking_after_settling: f64,
+}
+
 /// The files of a run.
 struct Outputs {
     sensors: CsvSeries,
@@ -250,39 +386,32 @@ struct Outputs {
 }
 
 impl Outputs {
-    fn create(ctx: &RunContext, track: &Track) -> Result<Self> {
+    /// New files, or (`resume`: the checkpoint's clock, time and frame count) the
+    /// killed run's files cut back to the checkpoint.
+    fn open(ctx: &RunContext, track: &Track, resume: Option<(f64, f64, usize)>) -> Result<Self> {
         let mut columns = vec!["time_s".to_string()];
         // The columns `ballast-post spectra` reads, in its order (u, v, a; x, y, z).
         for s in &track.sensors {
             columns.extend(QUANTITIES.iter().map(|q| format!("{}_{q}", s.name)));
         }
         let refs: Vec<&str> = columns.iter().map(String::as_str).collect();
-        let sensors = CsvSeries::create(ctx.out_dir.join("sensors.csv"), &refs)?;
-        let track_csv = CsvSeries::create(
-            ctx.out_dir.join("track.csv"),
-            &[
-                "time_s",
-                "rp1_n",
-                "rp2_n",
-                "sleeper_settlement_m",
-                "contacts",
-                "max_overlap_m",
-                "kinetic_j",
-                "strain_j",
-                "spring_j",
-                "dissipated_j",
-                "external_work_j",
-                "balance_error_j",
-            ],
-        )?;
-        std::fs::create_dir_all(ctx.out_dir.join("frames"))
-            .map_err(|e| Error::io(&ctx.out_dir, e))?;
+        let dir = &ctx.out_dir;
+        // Both CSVs are on the clock (0 at the end of settling), the .pvd on run time.
+        let csv = |name: &str, columns: &[&str]| match resume {
+            Some((clock, _, _)) => CsvSeries::open_existing(dir.join(name), columns, clock),
+            None => CsvSeries::create(dir.join(name), columns),
+        };
+        let pvd = |name: &str| match resume {
+            Some((_, time, _)) => PvdWriter::open_existing(dir.join(name), time),
+            None => PvdWriter::create(dir.join(name)),
+        };
+        std::fs::create_dir_all(dir.join("frames")).map_err(|e| Error::io(dir, e))?;
         Ok(Outputs {
-            sensors,
-            track: track_csv,
-            deformable: PvdWriter::create(ctx.out_dir.join("deformable.pvd"))?,
-            rigid: PvdWriter::create(ctx.out_dir.join("rigid.pvd"))?,
-            frames: 0,
+            sensors: csv("sensors.csv", &refs)?,
+            track: csv("track.csv", &TRACK_COLUMNS)?,
+            deformable: pvd("deformable.pvd")?,
+            rigid: pvd("rigid.pvd")?,
+            frames: resume.map_or(0, |(_, _, frames)| frames),
             frame_s: 0.0,
         })
     }

@@ -18,6 +18,7 @@
 //! rigid_damping_ratio = 0.02
 //! sample_rate = "10 kHz"
 //! frames = 4
+//! checkpoint_every = 50000              # steps; 0 for none (resume: --resume DIR)
 //!
 //! [ballast]            # material + DEM springs (seed 004 Table 1)
 //! [sleeper]
@@ -127,6 +128,10 @@ pub struct TrackSpec {
     /// VTK frames over the run (settling included).
     #[serde(default = "default_frames")]
     pub frames: usize,
+    /// A checkpoint (`checkpoint.bin`, for `--resume`) every this many steps and at the
+    /// end; 0 for none.
+    #[serde(default = "default_checkpoint_every")]
+    pub checkpoint_every: u64,
 }
 
 /// Where a body's contact spheres are centred.
@@ -261,6 +266,9 @@ fn default_settle_damping() -> Frequency {
 }
 fn default_frames() -> usize {
     4
+}
+fn default_checkpoint_every() -> u64 {
+    50_000
 }
 fn default_mu() -> f64 {
     0.577
