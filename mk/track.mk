@@ -21,3 +21,39 @@ $(TRACK_QUICK): scenes/track_impact.toml $(TRACK_BED) $(TRACK_LOAD) $(RUST_SOURC
 	$(RELEASE)/ballast-qdem $< --preset quick --out $(@D)
 $(TRACK_SPECTRA): $(TRACK_QUICK) | $(RELEASE)/ballast-post
 	$(RELEASE)/ballast-post spectra $(dir $<)sensors.csv --load $(TRACK_LOAD) --out $(@:.json=)
+
+## Studies on the quick bed (minutes each, not in tests; `make track-study`):
+## - friction (seed 004 §4.1): the first bogie's whole passage (0.2 s, the load back to
+##   zero) with µ = 0.577 and µ = 1.73 on every contact; the settlements side by side;
+## - the stone model: the quick run (0.07 s) with rigid stones, stones deformable within
+##   0.15 m of the sleeper, and all stones deformable (seed 004's model, the
+##   reference): sleeper spectrum difference against wall time.
+TRACK_STUDY := results/track-study
+TRACK_MU := 0.577 1.73
+TRACK_STONES := deformable near rigid
+.PHONY: track-study bench-track
+track-study: $(TRACK_STUDY)/friction.md $(TRACK_STUDY)/stones.md
+$(TRACK_STUDY)/mu-%/summary.json: scenes/track_impact.toml $(TRACK_BED) $(TRACK_LOAD) | $(RELEASE)/ballast-qdem
+	$(RELEASE)/ballast-qdem $< --preset quick --set 'track.duration="0.2 s"' \
+	  --set friction.ballast_ballast=$* --set friction.ballast_sleeper=$* \
+	  --set friction.base=$* --out $(@D)
+$(TRACK_STUDY)/stones-%/summary.json: scenes/track_impact.toml $(TRACK_BED) $(TRACK_LOAD) | $(RELEASE)/ballast-qdem
+	$(RELEASE)/ballast-qdem $< --preset quick --set 'track.stones="$*"' --out $(@D)
+$(TRACK_STUDY)/friction.md: $(TRACK_MU:%=$(TRACK_STUDY)/mu-%/summary.json) | $(RELEASE)/ballast-post
+	$(RELEASE)/ballast-post track-compare $(TRACK_MU:%=$(TRACK_STUDY)/mu-%) --out $(@:.md=)
+$(TRACK_STUDY)/stones.md: $(TRACK_STONES:%=$(TRACK_STUDY)/stones-%/summary.json) | $(RELEASE)/ballast-post
+	$(RELEASE)/ballast-post track-compare $(TRACK_STONES:%=$(TRACK_STUDY)/stones-%) --out $(@:.md=)
+
+## Throughput of the track scene (part of `make bench`): 20 ms of the quick preset on 1
+## and 2 threads (the files must agree: spectrum difference 0), with peak memory.
+## TRACK_BENCH_PRESET=paper benchmarks the paper bed (needs results/bed-impact:
+## `ballast-pack scenes/bed.toml --preset impact`, hours).
+TRACK_BENCH_PRESET ?= quick
+TRACK_BENCH := results/bench-track-$(TRACK_BENCH_PRESET)
+bench: bench-track
+bench-track: scenes/track_impact.toml $(TRACK_BED) $(TRACK_LOAD) | $(RELEASE)/ballast-qdem $(RELEASE)/ballast-post
+	for t in 1 2; do \
+	  $(RELEASE)/ballast-qdem $< --preset $(TRACK_BENCH_PRESET) --threads $$t \
+	    --set 'track.duration="20 ms"' --set track.frames=1 --out $(TRACK_BENCH)/threads-$$t || exit 1; \
+	done
+	$(RELEASE)/ballast-post track-compare $(TRACK_BENCH)/threads-1 $(TRACK_BENCH)/threads-2 --out $(TRACK_BENCH)/bench

@@ -1,5 +1,6 @@
 //! `ballast-post`: reports and charts from meshes and results.
 
+use crate::post::track_compare;
 use crate::post::track_sensors::{self, Component};
 use crate::post::track_spectra::{self, SpectraOptions};
 use crate::post::train_load::{self, TrainSpec};
@@ -47,6 +48,29 @@ pub enum PostCommand {
     /// Rail-seat loads of a passing train (CSV time_s,Rp1,Rp2 in N) for the track scene:
     /// Zimmermann influence line of each wheel plus seeded roughness noise (seed 004 §4).
     TrainLoad(TrainLoadArgs),
+    /// Track runs of the same loads side by side: wall time, throughput, memory,
+    /// settlement, and each run's sleeper spectrum difference from a reference run
+    /// (charted against wall time: the rigid/deformable choice; the friction study).
+    TrackCompare {
+        /// Run directories of ballast-qdem track scenes (summary.json, sensors.csv).
+        #[arg(required = true)]
+        dirs: Vec<PathBuf>,
+        /// The reference run (e.g. all stones deformable) [default: the first DIR].
+        #[arg(long)]
+        reference: Option<PathBuf>,
+        /// Sensor whose vertical acceleration spectrum is compared.
+        #[arg(long, default_value = "S2")]
+        sensor: String,
+        /// Parzen smoothing bandwidth, Hz.
+        #[arg(long, default_value_t = 20.0)]
+        bandwidth_hz: f64,
+        /// Highest frequency compared, Hz.
+        #[arg(long, default_value_t = 1000.0)]
+        max_hz: f64,
+        /// Output prefix: PREFIX.md, PREFIX.json, PREFIX.svg, PREFIX.png.
+        #[arg(long)]
+        out: PathBuf,
+    },
     /// Parzen-smoothed spectra, peaks and mobility of track sensors, with displacement and
     /// acceleration histories (seed 004 Figures 8-12).
     Spectra {
@@ -213,6 +237,27 @@ pub fn run_post(cli: PostCli) -> crate::Result<()> {
             Ok(())
         }
         PostCommand::TrainLoad(args) => run_train_load(&args),
+        PostCommand::TrackCompare {
+            dirs,
+            reference,
+            sensor,
+            bandwidth_hz,
+            max_hz,
+            out,
+        } => {
+            let options = track_compare::CompareOptions {
+                sensor,
+                bandwidth_hz,
+                max_hz,
+            };
+            let reference = reference.unwrap_or_else(|| dirs[0].clone());
+            let runs = track_compare::compare(&dirs, &reference, &options)?;
+            print!("{}", track_compare::table(&runs, &reference, &options));
+            for file in track_compare::write_report(&runs, &reference, &options, &out)? {
+                println!("wrote {}", file.display());
+            }
+            Ok(())
+        }
         PostCommand::Spectra {
             sensors,
             out,

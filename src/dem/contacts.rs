@@ -128,6 +128,9 @@ pub struct Contacts {
 /// Below this many pairs the force loop runs on the calling thread.
 const PARALLEL_MIN_PAIRS: usize = 4096;
 
+/// Pairs per chunk of the force loop (the unit of its ordered reduction).
+const PAIR_CHUNK: usize = 1024;
+
 impl Contacts {
     /// An engine over `set` with Verlet skin `skin` (m).
     pub fn new(set: SphereSet, skin: f64) -> Self {
@@ -285,6 +288,13 @@ impl Contacts {
             } else {
                 let j = p.second as usize;
                 let d = Period::difference(period, positions[i], positions[j]);
+                // Apart (beyond the rest overlap): no force, and no square root.
+                let reach = set.radius[i] + set.radius[j] - p.rest;
+                if dot(d, d) >= reach * reach {
+                    p.xi = [0.0; 3];
+                    p.force = [0.0; 3];
+                    return (PairForce::default(), 0.0, false);
+                }
                 let dist = norm(d);
                 let overlap = set.radius[i] + set.radius[j] - dist;
                 let n = if dist > 0.0 {
@@ -328,13 +338,31 @@ impl Contacts {
             }
             t
         };
-        // Pair results in pair order, then one ordered fold: thread-count independent.
-        let results: Vec<(PairForce, f64, bool)> = if state.pairs.len() >= PARALLEL_MIN_PAIRS {
-            state.pairs.par_iter_mut().map(one).collect()
-        } else {
-            state.pairs.iter_mut().map(one).collect()
+        // Fixed chunks of pairs, each folded in order, then the chunk totals folded in
+        // order: the sums do not depend on the thread count.
+        let chunk = |pairs: &mut [PairState]| {
+            pairs
+                .iter_mut()
+                .map(one)
+                .fold(ContactTotals::default(), fold)
         };
-        let mut totals = results.into_iter().fold(ContactTotals::default(), fold);
+        let partials: Vec<ContactTotals> = if state.pairs.len() >= PARALLEL_MIN_PAIRS {
+            state.pairs.par_chunks_mut(PAIR_CHUNK).map(chunk).collect()
+        } else {
+            state.pairs.chunks_mut(PAIR_CHUNK).map(chunk).collect()
+        };
+        let mut totals = partials
+            .into_iter()
+            .fold(ContactTotals::default(), |mut t, c| {
+                t.touching += c.touching;
+                t.touching_planes += c.touching_planes;
+                t.mean_overlap += c.mean_overlap;
+                t.max_overlap = t.max_overlap.max(c.max_overlap);
+                t.spring_energy += c.spring_energy;
+                t.slip_dissipated += c.slip_dissipated;
+                t.damping_dissipated += c.damping_dissipated;
+                t
+            });
         if totals.touching > 0 {
             totals.mean_overlap /= totals.touching as f64;
         }

@@ -164,15 +164,17 @@ impl RigidState {
         self.orientation = [q.w, q.i, q.j, q.k];
     }
 
-    /// World position and velocity of sphere `k`.
+    /// World position and velocity of sphere `k`, given the body's rotation matrix
+    /// (from [`Self::rotation`]) and angular velocity (from [`Self::angular_velocity`]),
+    /// computed once per body and step.
     pub fn sphere(
         &self,
         shape: &RigidShape,
-        rotation: &UnitQuaternion<f64>,
+        rotation: &Matrix3<f64>,
         omega: &Vector3<f64>,
         k: usize,
     ) -> ([f64; 3], [f64; 3]) {
-        let r = rotation.transform_vector(&Vector3::from(shape.spheres[k]));
+        let r = rotation * Vector3::from(shape.spheres[k]);
         let v = Vector3::from(self.velocity) + omega.cross(&r);
         (
             [

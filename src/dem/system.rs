@@ -16,7 +16,7 @@
 
 use std::ops::Range;
 
-use nalgebra::{UnitQuaternion, Vector3};
+use nalgebra::Vector3;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -481,11 +481,6 @@ fn gather(
     sx: &mut [[f64; 3]],
     sv: &mut [[f64; 3]],
 ) {
-    let poses: Vec<(UnitQuaternion<f64>, Vector3<f64>)> = rigid
-        .iter()
-        .zip(&system.rigid)
-        .map(|(r, s)| (r.rotation(), r.angular_velocity(s)))
-        .collect();
     let turns: Vec<nalgebra::Matrix3<f64>> = match (x, &system.model) {
         (Some(x), Some(model)) if !x.is_empty() && system.insets => system
             .deformable
@@ -494,27 +489,54 @@ fn gather(
             .collect(),
         _ => vec![nalgebra::Matrix3::identity(); system.deformable.len()],
     };
-    let one = |(s, (px, pv)): (usize, (&mut [f64; 3], &mut [f64; 3]))| match system.spheres[s] {
-        SphereAt::Node { node, body, inset } => {
+    // Node spheres come first, then each rigid body's in one run (see `spheres`).
+    let (total, nodes) = (
+        sx.len(),
+        system.rigid_spheres.first().map_or(sx.len(), |r| r.start),
+    );
+    let (sx_nodes, mut sx_rigid) = sx.split_at_mut(nodes);
+    let (sv_nodes, mut sv_rigid) = sv.split_at_mut(nodes);
+    let node = |(s, (px, pv)): (usize, (&mut [f64; 3], &mut [f64; 3]))| {
+        if let SphereAt::Node { node, body, inset } = system.spheres[s] {
             let p = x.map_or([0.0; 3], |x| x[node as usize]);
             let o = turns[body as usize] * Vector3::from(inset);
             *px = [p[0] + o.x, p[1] + o.y, p[2] + o.z];
             *pv = v.map_or([0.0; 3], |v| v[node as usize]);
         }
-        SphereAt::Rigid { body, k } => {
-            let b = body as usize;
-            let (p, vel) = rigid[b].sphere(&system.rigid[b], &poses[b].0, &poses[b].1, k as usize);
-            *px = p;
-            *pv = vel;
+    };
+    if nodes >= 4096 {
+        sx_nodes
+            .par_iter_mut()
+            .zip(sv_nodes.par_iter_mut())
+            .enumerate()
+            .for_each(node);
+    } else {
+        sx_nodes
+            .iter_mut()
+            .zip(sv_nodes.iter_mut())
+            .enumerate()
+            .for_each(node);
+    }
+    // One task per rigid body: its rotation and angular velocity once, then its spheres.
+    let mut bodies = Vec::with_capacity(rigid.len());
+    for range in &system.rigid_spheres {
+        let (x_here, x_rest) = std::mem::take(&mut sx_rigid).split_at_mut(range.len());
+        let (v_here, v_rest) = std::mem::take(&mut sv_rigid).split_at_mut(range.len());
+        bodies.push((x_here, v_here));
+        (sx_rigid, sv_rigid) = (x_rest, v_rest);
+    }
+    let body = |(b, (px, pv)): (usize, &mut (&mut [[f64; 3]], &mut [[f64; 3]]))| {
+        let (r, shape) = (&rigid[b], &system.rigid[b]);
+        let turn = r.rotation().to_rotation_matrix().into_inner();
+        let omega = r.angular_velocity(shape);
+        for (k, (p, q)) in px.iter_mut().zip(pv.iter_mut()).enumerate() {
+            (*p, *q) = r.sphere(shape, &turn, &omega, k);
         }
     };
-    if sx.len() >= 4096 {
-        sx.par_iter_mut()
-            .zip(sv.par_iter_mut())
-            .enumerate()
-            .for_each(one);
+    if total - nodes >= 4096 {
+        bodies.par_iter_mut().enumerate().for_each(body);
     } else {
-        sx.iter_mut().zip(sv.iter_mut()).enumerate().for_each(one);
+        bodies.iter_mut().enumerate().for_each(body);
     }
 }
 

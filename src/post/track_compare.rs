@@ -1,0 +1,315 @@
+//! `ballast-post track-compare`: several track runs of the same loads side by side —
+//! what each cost and how far its sleeper spectrum is from a reference run's (seed
+//! 004 §4's all-deformable model, or any run chosen), and its settlement.
+//!
+//! It answers the two questions of the rigid/deformable choice and of the friction
+//! study:
+//! - accuracy against wall time: the relative L2 difference of one sensor's smoothed
+//!   acceleration spectrum (Parzen, 20 Hz, 0 < f ≤ 1 kHz) from the reference's,
+//!   ‖A − A_ref‖₂ / ‖A_ref‖₂ over the bins, against the wall time of the time loop;
+//! - settlement (the sleeper's bottom face, from the end of settling) per run, e.g.
+//!   µ = 0.577 against µ = 1.73 (seed 004 §4.1).
+//!
+//! Reads each directory's `summary.json` and `sensors.csv` (as `ballast-qdem` writes
+//! them); writes `PREFIX.md` (the table), `PREFIX.json` and the chart `PREFIX.svg/.png`.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use plotters::prelude::*;
+use serde_json::{json, Value};
+
+use super::chart::{write_svg_png, Figure, PALETTE};
+use super::track_sensors::read_sensors;
+use super::track_spectra::smoothed_spectrum;
+use crate::{Error, Result};
+
+/// How the comparison is made.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CompareOptions {
+    /// The sensor whose vertical acceleration spectrum is compared (S2: mid-sleeper).
+    pub sensor: String,
+    /// Parzen bandwidth, Hz.
+    pub bandwidth_hz: f64,
+    /// Highest frequency compared, Hz.
+    pub max_hz: f64,
+}
+
+impl Default for CompareOptions {
+    fn default() -> Self {
+        CompareOptions {
+            sensor: "S2".into(),
+            bandwidth_hz: 20.0,
+            max_hz: 1000.0,
+        }
+    }
+}
+
+/// One run of the comparison.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ComparedRun {
+    /// The run's directory.
+    pub dir: PathBuf,
+    /// What distinguishes it: the stone model and the ballast friction.
+    pub label: String,
+    /// Stones modelled as QDEM bodies, and in all.
+    pub deformable_stones: u64,
+    /// Stones in the bed.
+    pub stones: u64,
+    /// Ballast–ballast friction coefficient.
+    pub friction: f64,
+    /// Wall time of the time loop (s).
+    pub wall_s: f64,
+    /// Simulated seconds per wall hour.
+    pub simulated_s_per_wall_hour: f64,
+    /// Touching contact pairs per second of wall time.
+    pub contact_pairs_per_s: f64,
+    /// Peak resident memory (MiB).
+    pub peak_memory_mib: f64,
+    /// Sleeper settlement since the end of settling (m; negative: down).
+    pub settlement_m: f64,
+    /// Relative L2 difference of the sensor's spectrum from the reference's.
+    pub spectrum_difference: f64,
+}
+
+fn figure(summary: &Value, path: &Path, key: &str) -> Result<f64> {
+    summary["figures"][key]
+        .as_f64()
+        .ok_or_else(|| Error::invalid(path, format!("figures.{key}: missing or not a number")))
+}
+
+/// The smoothed vertical acceleration spectrum of `sensor` in `dir/sensors.csv`,
+/// over 0 < f ≤ max_hz: (frequencies, amplitudes).
+fn spectrum(dir: &Path, options: &CompareOptions) -> Result<(Vec<f64>, Vec<f64>)> {
+    let path = dir.join("sensors.csv");
+    let record = read_sensors(&path)?;
+    let sensor = record
+        .sensors
+        .iter()
+        .find(|s| s.name == options.sensor)
+        .ok_or_else(|| {
+            Error::invalid(
+                &path,
+                format!(
+                    "no sensor \"{}\" (columns {}_az_m_per_s2)",
+                    options.sensor, options.sensor
+                ),
+            )
+        })?;
+    let s = smoothed_spectrum(
+        &sensor.acceleration_m_per_s2[2],
+        record.dt_s,
+        options.bandwidth_hz,
+    )?;
+    let keep: Vec<usize> = (0..s.frequencies_hz.len())
+        .filter(|&i| s.frequencies_hz[i] > 0.0 && s.frequencies_hz[i] <= options.max_hz)
+        .collect();
+    Ok((
+        keep.iter().map(|&i| s.frequencies_hz[i]).collect(),
+        keep.iter().map(|&i| s.amplitudes[i]).collect(),
+    ))
+}
+
+fn label(summary: &Value) -> String {
+    let track = &summary["inputs"]["track"];
+    let stones = track["stones"].as_str().unwrap_or("rigid");
+    let model = match stones {
+        "near" => format!(
+            "near ({})",
+            track["deformable_within"].as_str().unwrap_or("default")
+        ),
+        other => other.to_string(),
+    };
+    let mu = &summary["inputs"]["friction"]["ballast_ballast"];
+    match mu.as_f64() {
+        Some(mu) => format!("{model}, µ {mu}"),
+        None => model,
+    }
+}
+
+/// Compares the runs in `dirs` with the run in `reference` (which may be one of them).
+pub fn compare(
+    dirs: &[PathBuf],
+    reference: &Path,
+    options: &CompareOptions,
+) -> Result<Vec<ComparedRun>> {
+    let (ref_f, ref_a) = spectrum(reference, options)?;
+    let ref_norm = ref_a.iter().map(|a| a * a).sum::<f64>().sqrt();
+    dirs.iter()
+        .map(|dir| {
+            let path = dir.join("summary.json");
+            let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
+            let summary: Value = serde_json::from_str(&text)
+                .map_err(|e| Error::invalid(&path, format!("not JSON: {e}")))?;
+            let (f, a) = spectrum(dir, options)?;
+            if f != ref_f {
+                return Err(Error::invalid(
+                    dir.join("sensors.csv"),
+                    format!(
+                        "{} spectrum bins up to {} Hz, the reference {} has {}: the records \
+                         differ in length or rate",
+                        f.len(),
+                        options.max_hz,
+                        reference.display(),
+                        ref_f.len()
+                    ),
+                ));
+            }
+            let diff = a
+                .iter()
+                .zip(&ref_a)
+                .map(|(a, r)| (a - r) * (a - r))
+                .sum::<f64>()
+                .sqrt();
+            let wall = summary["wall_time_s"]["stepping"].as_f64().ok_or_else(|| {
+                Error::invalid(&path, "wall_time_s.stepping: missing or not a number")
+            })?;
+            Ok(ComparedRun {
+                dir: dir.clone(),
+                label: label(&summary),
+                deformable_stones: figure(&summary, &path, "deformable_stones")? as u64,
+                stones: figure(&summary, &path, "stones")? as u64,
+                friction: summary["inputs"]["friction"]["ballast_ballast"]
+                    .as_f64()
+                    .unwrap_or(f64::NAN),
+                wall_s: wall,
+                simulated_s_per_wall_hour: figure(&summary, &path, "simulated_s_per_wall_hour")?,
+                contact_pairs_per_s: figure(&summary, &path, "contact_pairs_per_s")?,
+                peak_memory_mib: figure(&summary, &path, "peak_memory_mib")?,
+                settlement_m: figure(&summary, &path, "sleeper_settlement_m")?,
+                spectrum_difference: if ref_norm > 0.0 {
+                    diff / ref_norm
+                } else {
+                    f64::NAN
+                },
+            })
+        })
+        .collect()
+}
+
+/// The markdown table of `runs`.
+pub fn table(runs: &[ComparedRun], reference: &Path, options: &CompareOptions) -> String {
+    let mut s = format!(
+        "Reference: {} · {} vertical acceleration, Parzen {} Hz, 0–{} Hz\n\n",
+        reference.display(),
+        options.sensor,
+        options.bandwidth_hz,
+        options.max_hz
+    );
+    s.push_str(
+        "| run | deformable / stones | wall s | simulated s / wall h | contact pairs/s | \
+         memory MiB | settlement µm | spectrum difference |\n|---|---|---|---|---|---|---|---|\n",
+    );
+    for r in runs {
+        let _ = writeln!(
+            s,
+            "| {} | {} / {} | {:.1} | {:.3} | {:.3e} | {:.0} | {:.3} | {:.2} % |",
+            r.label,
+            r.deformable_stones,
+            r.stones,
+            r.wall_s,
+            r.simulated_s_per_wall_hour,
+            r.contact_pairs_per_s,
+            r.peak_memory_mib,
+            r.settlement_m * 1e6,
+            100.0 * r.spectrum_difference
+        );
+    }
+    s
+}
+
+/// Writes `PREFIX.md`, `PREFIX.json` and the chart `PREFIX.svg/.png`; returns the paths.
+pub fn write_report(
+    runs: &[ComparedRun],
+    reference: &Path,
+    options: &CompareOptions,
+    prefix: &Path,
+) -> Result<Vec<PathBuf>> {
+    if let Some(dir) = prefix.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    }
+    let md = prefix.with_extension("md");
+    crate::output::write_atomic(&md, table(runs, reference, options).as_bytes())?;
+    let js = prefix.with_extension("json");
+    let value = json!({
+        "reference": reference.display().to_string(),
+        "sensor": options.sensor,
+        "bandwidth_hz": options.bandwidth_hz,
+        "max_hz": options.max_hz,
+        "runs": runs.iter().map(|r| json!({
+            "dir": r.dir.display().to_string(),
+            "label": r.label,
+            "deformable_stones": r.deformable_stones,
+            "stones": r.stones,
+            "friction": r.friction,
+            "wall_s": r.wall_s,
+            "simulated_s_per_wall_hour": r.simulated_s_per_wall_hour,
+            "contact_pairs_per_s": r.contact_pairs_per_s,
+            "peak_memory_mib": r.peak_memory_mib,
+            "sleeper_settlement_m": r.settlement_m,
+            "spectrum_difference": r.spectrum_difference,
+        })).collect::<Vec<_>>(),
+    });
+    crate::output::write_json(&js, &value)?;
+    let mut paths = vec![md, js];
+    paths.extend(write_svg_png(&CompareChart(runs), prefix, (1000, 700))?);
+    Ok(paths)
+}
+
+struct CompareChart<'a>(&'a [ComparedRun]);
+
+impl Figure for CompareChart<'_> {
+    fn draw<DB: DrawingBackend>(
+        &self,
+        root: &DrawingArea<DB, plotters::coord::Shift>,
+    ) -> std::result::Result<(), String> {
+        let err = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
+        let runs = self.0;
+        let walls: Vec<f64> = runs.iter().map(|r| r.wall_s.max(1e-3)).collect();
+        let x0 = walls.iter().copied().fold(f64::INFINITY, f64::min) / 1.5;
+        let x1 = walls.iter().copied().fold(0.0, f64::max) * 1.5;
+        let y1 = runs
+            .iter()
+            .map(|r| 100.0 * r.spectrum_difference)
+            .filter(|d| d.is_finite())
+            .fold(1.0, f64::max)
+            * 1.2;
+        let mut chart = ChartBuilder::on(root)
+            .caption(
+                "sleeper spectrum difference from the reference vs wall time",
+                ("sans-serif", 22),
+            )
+            .margin(15)
+            .x_label_area_size(45)
+            .y_label_area_size(65)
+            .build_cartesian_2d((x0..x1).log_scale(), 0.0..y1)
+            .map_err(err)?;
+        chart
+            .configure_mesh()
+            .x_desc("wall time of the time loop (s)")
+            .y_desc("spectrum difference (%)")
+            .x_label_formatter(&|v| format!("{v:.0}"))
+            .draw()
+            .map_err(err)?;
+        for (i, (r, &x)) in runs.iter().zip(&walls).enumerate() {
+            let colour = PALETTE[i % PALETTE.len()];
+            let y = 100.0 * r.spectrum_difference;
+            if !y.is_finite() {
+                continue;
+            }
+            chart
+                .draw_series(std::iter::once(Circle::new((x, y), 7, colour.filled())))
+                .map_err(err)?
+                .label(r.label.clone())
+                .legend(move |(lx, ly)| Circle::new((lx + 10, ly), 6, colour.filled()));
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 16))
+            .draw()
+            .map_err(err)?;
+        Ok(())
+    }
+}
