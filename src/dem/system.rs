@@ -472,6 +472,9 @@ fn state_energy(deformable: Option<&State>, e: &SystemEnergies) -> f64 {
         })
 }
 
+/// One rigid body's sphere positions and velocities, to fill.
+type SphereSlices<'a> = (&'a mut [[f64; 3]], &'a mut [[f64; 3]]);
+
 /// Sphere positions and velocities from the node arrays and the rigid states.
 fn gather(
     system: &MultiBody,
@@ -525,7 +528,7 @@ fn gather(
         bodies.push((x_here, v_here));
         (sx_rigid, sv_rigid) = (x_rest, v_rest);
     }
-    let body = |(b, (px, pv)): (usize, &mut (&mut [[f64; 3]], &mut [[f64; 3]]))| {
+    let body = |(b, (px, pv)): (usize, &mut SphereSlices)| {
         let (r, shape) = (&rigid[b], &system.rigid[b]);
         let turn = r.rotation().to_rotation_matrix().into_inner();
         let omega = r.angular_velocity(shape);
