@@ -15,7 +15,7 @@ $(TRACK_BED): scenes/bed.toml $(STONE_MESHES) meshes/sleeper_type3.msh | $(RELEA
 	$(RELEASE)/ballast-pack $< --preset impact-quick --out $(@D)
 # One car's leading bogie: the first axle 1.885 m (3π/4 L, a zero of the influence
 # line) before the sleeper, 0.2 s of record.
-$(TRACK_LOAD): | $(RELEASE)/ballast-post
+$(TRACK_LOAD): mk/track.mk | $(RELEASE)/ballast-post
 	$(RELEASE)/ballast-post train-load --out $@ --cars 1 --lead-in-m 1.885 --duration-s 0.2
 $(TRACK_QUICK): scenes/track_impact.toml $(TRACK_BED) $(TRACK_LOAD) $(RUST_SOURCES) | $(RELEASE)/ballast-qdem
 	$(RELEASE)/ballast-qdem $< --preset quick --out $(@D)

@@ -424,6 +424,11 @@ fn bad_track_input_gives_one_line_errors() {
     .output()
     .unwrap();
     assert_one_line_error(&o, 1, &["/nonexistent/packing.toml"]);
+    // A run longer than its load record (0.2 s) would hold the last row: refused.
+    let o = qdem(&out, &set("track.duration=\"0.3 s\"".into()))
+        .output()
+        .unwrap();
+    assert_one_line_error(&o, 1, &["train_load.csv", "track.duration", "0.2 s"]);
     // The step is checked once the bodies are built (the report lines come first).
     let o = qdem(&out, &set("track.dt=\"50 us\"".into()))
         .output()

@@ -62,10 +62,25 @@ pub fn run(ctx: &RunContext, force: bool, resume: bool) -> Result<()> {
     let packing_path = TrackScene::resolve(&ctx.scene_path, &scene.track.packing);
     let packing = Packing::read(&packing_path)?;
     let loads = match &scene.track.loads {
-        Some(file) => Some(RailSeatLoads::read(&TrackScene::resolve(
-            &ctx.scene_path,
-            file,
-        ))?),
+        Some(file) => {
+            let path = TrackScene::resolve(&ctx.scene_path, file);
+            let loads = RailSeatLoads::read(&path)?;
+            // Past its last row a record would hold its last value: refuse instead.
+            let (end, wanted) = (
+                *loads.times.last().unwrap_or(&0.0),
+                scene.track.duration.si(),
+            );
+            if wanted > end * (1.0 + 1e-9) + 1e-12 {
+                return Err(Error::invalid(
+                    &path,
+                    format!(
+                        "the record ends at t = {end} s, before the end of track.duration = \
+                         {wanted} s (write a longer record, or shorten the run)"
+                    ),
+                ));
+            }
+            Some(loads)
+        }
         None => None,
     };
     let track = timer.time("build", || {
