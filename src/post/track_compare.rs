@@ -7,8 +7,9 @@
 //! - accuracy against wall time: the relative L2 difference of one sensor's smoothed
 //!   acceleration spectrum (Parzen, 20 Hz, 0 < f ≤ 1 kHz) from the reference's,
 //!   ‖A − A_ref‖₂ / ‖A_ref‖₂ over the bins, against the wall time of the time loop;
-//! - settlement (the sleeper's bottom face, from the end of settling) per run, e.g.
-//!   µ = 0.577 against µ = 1.73 (seed 004 §4.1).
+//! - settlement per run, e.g. µ = 0.577 against µ = 1.73 (seed 004 §4.1): the
+//!   sleeper's (its bottom face, from the end of settling), and the stone sensors'
+//!   (B*: mean final vertical displacement, and their largest lateral one).
 //!
 //! Reads each directory's `summary.json` and `sensors.csv` (as `ballast-qdem` writes
 //! them); writes `PREFIX.md` (the table), `PREFIX.json` and the chart `PREFIX.svg/.png`.
@@ -68,6 +69,12 @@ pub struct ComparedRun {
     pub peak_memory_mib: f64,
     /// Sleeper settlement since the end of settling (m; negative: down).
     pub settlement_m: f64,
+    /// Mean final vertical displacement of the stone sensors B* (m; negative: down):
+    /// the ballast settlement of seed 004 Figure 8b.
+    pub stone_settlement_m: f64,
+    /// Largest lateral (y) displacement magnitude of a stone sensor over the record
+    /// (m): seed 004 Figure 8a.
+    pub stone_lateral_m: f64,
     /// Relative L2 difference of the sensor's spectrum from the reference's.
     pub spectrum_difference: f64,
 }
@@ -78,11 +85,40 @@ fn figure(summary: &Value, path: &Path, key: &str) -> Result<f64> {
         .ok_or_else(|| Error::invalid(path, format!("figures.{key}: missing or not a number")))
 }
 
-/// The smoothed vertical acceleration spectrum of `sensor` in `dir/sensors.csv`,
-/// over 0 < f ≤ max_hz: (frequencies, amplitudes).
-fn spectrum(dir: &Path, options: &CompareOptions) -> Result<(Vec<f64>, Vec<f64>)> {
+/// What a run's `sensors.csv` gives: the smoothed vertical acceleration spectrum of
+/// the compared sensor over 0 < f ≤ max_hz, and the stone sensors' settlement and
+/// largest lateral displacement (NaN without stone sensors).
+struct SensorFigures {
+    frequencies_hz: Vec<f64>,
+    amplitudes: Vec<f64>,
+    stone_settlement_m: f64,
+    stone_lateral_m: f64,
+}
+
+fn sensor_figures(dir: &Path, options: &CompareOptions) -> Result<SensorFigures> {
     let path = dir.join("sensors.csv");
     let record = read_sensors(&path)?;
+    let stones: Vec<_> = record
+        .sensors
+        .iter()
+        .filter(|s| s.name.starts_with('B'))
+        .collect();
+    let (stone_settlement_m, stone_lateral_m) = if stones.is_empty() {
+        (f64::NAN, f64::NAN)
+    } else {
+        let last = |v: &[f64]| v.last().copied().unwrap_or(0.0);
+        (
+            stones
+                .iter()
+                .map(|s| last(&s.displacement_m[2]))
+                .sum::<f64>()
+                / stones.len() as f64,
+            stones
+                .iter()
+                .flat_map(|s| s.displacement_m[1].iter())
+                .fold(0.0, |m: f64, y| m.max(y.abs())),
+        )
+    };
     let sensor = record
         .sensors
         .iter()
@@ -104,10 +140,12 @@ fn spectrum(dir: &Path, options: &CompareOptions) -> Result<(Vec<f64>, Vec<f64>)
     let keep: Vec<usize> = (0..s.frequencies_hz.len())
         .filter(|&i| s.frequencies_hz[i] > 0.0 && s.frequencies_hz[i] <= options.max_hz)
         .collect();
-    Ok((
-        keep.iter().map(|&i| s.frequencies_hz[i]).collect(),
-        keep.iter().map(|&i| s.amplitudes[i]).collect(),
-    ))
+    Ok(SensorFigures {
+        frequencies_hz: keep.iter().map(|&i| s.frequencies_hz[i]).collect(),
+        amplitudes: keep.iter().map(|&i| s.amplitudes[i]).collect(),
+        stone_settlement_m,
+        stone_lateral_m,
+    })
 }
 
 fn label(summary: &Value) -> String {
@@ -133,7 +171,11 @@ pub fn compare(
     reference: &Path,
     options: &CompareOptions,
 ) -> Result<Vec<ComparedRun>> {
-    let (ref_f, ref_a) = spectrum(reference, options)?;
+    let reference_figures = sensor_figures(reference, options)?;
+    let (ref_f, ref_a) = (
+        &reference_figures.frequencies_hz,
+        &reference_figures.amplitudes,
+    );
     let ref_norm = ref_a.iter().map(|a| a * a).sum::<f64>().sqrt();
     dirs.iter()
         .map(|dir| {
@@ -141,7 +183,8 @@ pub fn compare(
             let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
             let summary: Value = serde_json::from_str(&text)
                 .map_err(|e| Error::invalid(&path, format!("not JSON: {e}")))?;
-            let (f, a) = spectrum(dir, options)?;
+            let figures = sensor_figures(dir, options)?;
+            let (f, a) = (&figures.frequencies_hz, &figures.amplitudes);
             if f != ref_f {
                 return Err(Error::invalid(
                     dir.join("sensors.csv"),
@@ -157,7 +200,7 @@ pub fn compare(
             }
             let diff = a
                 .iter()
-                .zip(&ref_a)
+                .zip(ref_a)
                 .map(|(a, r)| (a - r) * (a - r))
                 .sum::<f64>()
                 .sqrt();
@@ -177,6 +220,8 @@ pub fn compare(
                 contact_pairs_per_s: figure(&summary, &path, "contact_pairs_per_s")?,
                 peak_memory_mib: figure(&summary, &path, "peak_memory_mib")?,
                 settlement_m: figure(&summary, &path, "sleeper_settlement_m")?,
+                stone_settlement_m: figures.stone_settlement_m,
+                stone_lateral_m: figures.stone_lateral_m,
                 spectrum_difference: if ref_norm > 0.0 {
                     diff / ref_norm
                 } else {
@@ -198,12 +243,13 @@ pub fn table(runs: &[ComparedRun], reference: &Path, options: &CompareOptions) -
     );
     s.push_str(
         "| run | deformable / stones | wall s | simulated s / wall h | contact pairs/s | \
-         memory MiB | settlement µm | spectrum difference |\n|---|---|---|---|---|---|---|---|\n",
+         memory MiB | sleeper settlement µm | stone settlement µm | stone lateral µm | \
+         spectrum difference |\n|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in runs {
         let _ = writeln!(
             s,
-            "| {} | {} / {} | {:.1} | {:.3} | {:.3e} | {:.0} | {:.3} | {:.2} % |",
+            "| {} | {} / {} | {:.1} | {:.3} | {:.3e} | {:.0} | {:.3} | {:.4} | {:.4} | {:.2} % |",
             r.label,
             r.deformable_stones,
             r.stones,
@@ -212,6 +258,8 @@ pub fn table(runs: &[ComparedRun], reference: &Path, options: &CompareOptions) -
             r.contact_pairs_per_s,
             r.peak_memory_mib,
             r.settlement_m * 1e6,
+            r.stone_settlement_m * 1e6,
+            r.stone_lateral_m * 1e6,
             100.0 * r.spectrum_difference
         );
     }
@@ -247,6 +295,8 @@ pub fn write_report(
             "contact_pairs_per_s": r.contact_pairs_per_s,
             "peak_memory_mib": r.peak_memory_mib,
             "sleeper_settlement_m": r.settlement_m,
+            "stone_settlement_m": r.stone_settlement_m,
+            "stone_lateral_m": r.stone_lateral_m,
             "spectrum_difference": r.spectrum_difference,
         })).collect::<Vec<_>>(),
     });
