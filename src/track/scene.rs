@@ -9,7 +9,7 @@
 //! stones = "rigid"                      # rigid | deformable | near
 //! deformable_within = "0.15 m"          # near: stones this close to the sleeper deform
 //! periodic = "x"                        # along the track (the packing's x), or "none"
-//! settle = "20 ms"                      # gravity only, before the loads
+//! settle = "20 ms"                      # gravity, damped; the loads ramp to their first row
 //! duration = "0.2 s"                    # loaded time
 //! dt = "auto"                           # or a time; auto = dt_factor × stable
 //! dt_factor = 0.5
@@ -95,7 +95,8 @@ pub struct TrackSpec {
     /// Periodic direction.
     #[serde(default = "default_periodic")]
     pub periodic: Periodic,
-    /// Gravity-only settling time before the loads.
+    /// Settling time before the load record's t = 0: gravity, damped, with the loads
+    /// ramping from 0 to the record's first row.
     pub settle: Time,
     /// Mass-proportional damping rate α during settling (1/s; none after): the
     /// spheres round the polyhedra's corners off, so the bed first closes mm gaps.
