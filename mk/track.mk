@@ -38,7 +38,8 @@ $(TRACK_STUDY)/mu-%/summary.json: scenes/track_impact.toml $(TRACK_BED) $(TRACK_
 	  --set friction.ballast_ballast=$* --set friction.ballast_sleeper=$* \
 	  --set friction.base=$* --out $(@D)
 $(TRACK_STUDY)/stones-%/summary.json: scenes/track_impact.toml $(TRACK_BED) $(TRACK_LOAD) | $(RELEASE)/ballast-qdem
-	$(RELEASE)/ballast-qdem $< --preset quick --set 'track.stones="$*"' --out $(@D)
+	$(RELEASE)/ballast-qdem $< --preset quick --set 'track.stones="$*"' \
+	  $(if $(filter near,$*),--set 'track.deformable_within="0.15 m"') --out $(@D)
 $(TRACK_STUDY)/friction.md: $(TRACK_MU:%=$(TRACK_STUDY)/mu-%/summary.json) | $(RELEASE)/ballast-post
 	$(RELEASE)/ballast-post track-compare $(TRACK_MU:%=$(TRACK_STUDY)/mu-%) --out $(@:.md=)
 $(TRACK_STUDY)/stones.md: $(TRACK_STONES:%=$(TRACK_STUDY)/stones-%/summary.json) | $(RELEASE)/ballast-post
