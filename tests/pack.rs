@@ -588,23 +588,13 @@ fn a_killed_tamping_run_resumes_to_the_same_state() {
     let whole = work.path().join("whole");
     assert_success(&tamping_command(&whole, &short).output().unwrap());
     let killed = work.path().join("killed");
-    let mut child = tamping_command(&killed, &short)
-        .stdout(std::process::Stdio::null())
-        .stderr(std::process::Stdio::null())
-        .spawn()
-        .unwrap();
     let checkpoint = killed.join("checkpoint.bin");
-    let started = std::time::Instant::now();
-    while !checkpoint.exists() {
-        assert!(started.elapsed().as_secs() < 300, "no checkpoint written");
-        assert!(
-            child.try_wait().unwrap().is_none(),
-            "finished before a checkpoint"
-        );
-        std::thread::sleep(std::time::Duration::from_millis(50));
-    }
     // Let it run past the checkpoint (rows and frames to cut back), then SIGKILL.
-    std::thread::sleep(std::time::Duration::from_millis(1500));
+    let mut child = common::spawn_until_checkpoint(
+        &mut tamping_command(&killed, &short),
+        &checkpoint,
+        std::time::Duration::from_millis(1500),
+    );
     child.kill().unwrap();
     child.wait().unwrap();
     let rows = |dir: &Path| {

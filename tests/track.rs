@@ -323,23 +323,13 @@ fn the_track_run_does_not_depend_on_the_thread_count_and_resumes_bit_for_bit() {
     let whole = run("two", "2");
     let one = run("one", "1");
     let killed = base.path().join("killed");
-    let mut child = qdem(&killed, &short("2"))
-        .stdout(std::process::Stdio::null())
-        .stderr(std::process::Stdio::null())
-        .spawn()
-        .unwrap();
     let checkpoint = killed.join("checkpoint.bin");
-    let started = std::time::Instant::now();
-    while !checkpoint.exists() {
-        assert!(started.elapsed().as_secs() < 300, "no checkpoint written");
-        assert!(
-            child.try_wait().unwrap().is_none(),
-            "finished before a checkpoint"
-        );
-        std::thread::sleep(std::time::Duration::from_millis(20));
-    }
     // Past the checkpoint (rows to cut back), well before the end (2840 more steps).
-    std::thread::sleep(std::time::Duration::from_millis(400));
+    let mut child = common::spawn_until_checkpoint(
+        &mut qdem(&killed, &short("2")),
+        &checkpoint,
+        std::time::Duration::from_millis(400),
+    );
     assert!(
         child.try_wait().unwrap().is_none(),
         "finished before the kill"

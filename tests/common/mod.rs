@@ -62,3 +62,29 @@ pub fn figure(figures: &Value, name: &str) -> f64 {
         .as_f64()
         .unwrap_or_else(|| panic!("figure {name} missing: {figures}"))
 }
+
+/// Spawns `command` (its output discarded), waits until it has written `checkpoint`
+/// (panics if it ends first, or after 300 s), lets it run `after` longer and returns
+/// the running child, for the caller to kill with SIGKILL.
+pub fn spawn_until_checkpoint(
+    command: &mut Command,
+    checkpoint: &Path,
+    after: std::time::Duration,
+) -> std::process::Child {
+    let mut child = command
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let started = std::time::Instant::now();
+    while !checkpoint.exists() {
+        assert!(started.elapsed().as_secs() < 300, "no checkpoint written");
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "finished before a checkpoint"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    std::thread::sleep(after);
+    child
+}
