@@ -22,7 +22,7 @@ use serde_json::{json, Value};
 
 use super::chart::{write_svg_png, Figure, PALETTE};
 use super::track_sensors::read_sensors;
-use super::track_spectra::smoothed_spectrum;
+use super::track_spectra::{smoothed_spectrum, with_suffix};
 use crate::{Error, Result};
 
 /// How the comparison is made.
@@ -273,12 +273,11 @@ pub fn write_report(
     options: &CompareOptions,
     prefix: &Path,
 ) -> Result<Vec<PathBuf>> {
-    if let Some(dir) = prefix.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-    }
-    let md = prefix.with_extension("md");
+    // `with_suffix`, not `with_extension`: a prefix such as `runs/mu-0.577` keeps its
+    // dot. `write_atomic` creates the missing directories.
+    let md = with_suffix(prefix, ".md");
     crate::output::write_atomic(&md, table(runs, reference, options).as_bytes())?;
-    let js = prefix.with_extension("json");
+    let js = with_suffix(prefix, ".json");
     let value = json!({
         "reference": reference.display().to_string(),
         "sensor": options.sensor,
@@ -302,7 +301,11 @@ pub fn write_report(
     });
     crate::output::write_json(&js, &value)?;
     let mut paths = vec![md, js];
-    paths.extend(write_svg_png(&CompareChart(runs), prefix, (1000, 700))?);
+    paths.extend(write_svg_png(
+        &CompareChart(runs),
+        &with_suffix(prefix, ".svg"),
+        (1000, 700),
+    )?);
     Ok(paths)
 }
 

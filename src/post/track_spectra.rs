@@ -397,9 +397,7 @@ pub fn write_report(
     spectra: &TrackSpectra,
     prefix: &Path,
 ) -> Result<Vec<PathBuf>> {
-    if let Some(dir) = prefix.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-    }
+    // `write_atomic` creates the missing directories.
     let csv = with_suffix(prefix, "_spectra.csv");
     crate::output::write_atomic(&csv, spectra.csv().as_bytes())?;
     let json = with_suffix(prefix, ".json");
