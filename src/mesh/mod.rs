@@ -6,10 +6,12 @@ use nalgebra::Point3;
 use std::path::PathBuf;
 
 mod msh;
+mod order;
 mod quality;
 mod surface;
 
 pub use msh::{read_msh, read_msh_bytes};
+pub(crate) use order::{bounds, morton_key};
 pub use quality::{tet_face_areas, tet_min_altitude, tet_quality, tet_signed_volume, MeshQuality};
 pub use surface::{boundary_faces, tet_faces_outward, BoundaryError};
 

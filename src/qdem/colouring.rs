@@ -21,8 +21,7 @@ pub(crate) const BLOCK_SIZE: usize = 256;
 /// same either way, so the results are too.
 pub(crate) const PARALLEL_MIN_TETS: usize = 8192;
 
-/// Tetra handed to the kernel at once (SIMD lanes of the element kernel).
-pub(crate) const LANES: usize = 4;
+pub(crate) use super::kernel::LANES;
 
 /// Blocks of consecutive tetra grouped by colour.
 #[derive(Debug, Clone)]
@@ -147,6 +146,38 @@ impl BlockColouring {
         }
     }
 
+    /// Runs `kernel(block, partial)` on every block: the blocks of one colour in
+    /// parallel (touching disjoint node sets, see `verify`), colours one after the
+    /// other; `partials[b]` is block b's accumulator (reset to default first). A kernel
+    /// that writes only to its own block's nodes is therefore race-free and sums every
+    /// node in the same order for any thread count (see the module note).
+    pub fn run_blocks<P, K>(&self, partials: &mut [P], kernel: K)
+    where
+        P: Send + Default,
+        K: Fn(Range<usize>, &mut P) + Sync,
+    {
+        assert_eq!(partials.len(), self.blocks.len());
+        let run = |block: &Range<usize>, partial: &mut P| {
+            *partial = P::default();
+            kernel(block.clone(), partial);
+        };
+        let parallel = self.nodes.len() >= PARALLEL_MIN_TETS;
+        for c in 0..self.colours() {
+            let range = self.colour_offsets[c]..self.colour_offsets[c + 1];
+            if parallel {
+                self.blocks[range.clone()]
+                    .par_iter()
+                    .zip(partials[range].par_iter_mut())
+                    .for_each(|(block, partial)| run(block, partial));
+            } else {
+                for (block, partial) in self.blocks[range.clone()].iter().zip(&mut partials[range])
+                {
+                    run(block, partial);
+                }
+            }
+        }
+    }
+
     /// Runs `kernel` on every tetra, [`LANES`] at a time, and adds the four forces it
     /// returns per tetra to `forces` at the tetra's nodes. `kernel(first, count, partial)`
     /// gets tetra `first..first + count` (count ≤ LANES; the forces of lanes ≥ count are
@@ -157,15 +188,10 @@ impl BlockColouring {
         P: Send + Default,
         K: Fn(usize, usize, &mut P) -> [[Vec3; 4]; LANES] + Sync,
     {
-        assert_eq!(partials.len(), self.blocks.len());
         assert_eq!(forces.len(), self.node_count);
         let nodes = &self.nodes;
-        let target = ForceTarget {
-            ptr: forces.as_mut_ptr(),
-            _lifetime: PhantomData,
-        };
-        let run_block = |block: &Range<usize>, partial: &mut P| {
-            *partial = P::default();
+        let target = ForceTarget::new(forces);
+        self.run_blocks(partials, |block, partial| {
             let mut first = block.start;
             while first < block.end {
                 let count = LANES.min(block.end - first);
@@ -173,77 +199,48 @@ impl BlockColouring {
                 for (lane, fl) in f.iter().enumerate().take(count) {
                     for (k, &n) in nodes[first + lane].iter().enumerate() {
                         // SAFETY: `n < node_count == forces.len()` (checked in `new` and
-                        // above) and, within one colour, no other block touches node n
-                        // (`verify`), so this is the only access to `forces[n]` while the
-                        // colour runs; a colour's blocks all finish before the next
-                        // colour starts.
-                        unsafe { target.add(n as usize, fl[k]) };
+                        // above), and `run_blocks` gives this block its nodes alone.
+                        let p = unsafe { &mut *target.node(n as usize) };
+                        for d in 0..3 {
+                            p[d] += fl[k][d];
+                        }
                     }
                 }
                 first += count;
             }
-        };
-        let parallel = nodes.len() >= PARALLEL_MIN_TETS;
-        for c in 0..self.colours() {
-            let range = self.colour_offsets[c]..self.colour_offsets[c + 1];
-            if parallel {
-                self.blocks[range.clone()]
-                    .par_iter()
-                    .zip(partials[range].par_iter_mut())
-                    .for_each(|(block, partial)| run_block(block, partial));
-            } else {
-                for (block, partial) in self.blocks[range.clone()].iter().zip(&mut partials[range])
-                {
-                    run_block(block, partial);
-                }
-            }
+        });
+    }
+}
+
+/// A nodal array shared by the blocks of one colour (see [`BlockColouring::run_blocks`]).
+pub(crate) struct ForceTarget<'a, T> {
+    ptr: *mut T,
+    len: usize,
+    _lifetime: PhantomData<&'a mut [T]>,
+}
+
+// SAFETY: the only access goes through `node`, whose callers guarantee exclusive access
+// per node (see `run_blocks`).
+unsafe impl<T: Send> Sync for ForceTarget<'_, T> {}
+unsafe impl<T: Send> Send for ForceTarget<'_, T> {}
+
+impl<'a, T> ForceTarget<'a, T> {
+    /// Borrows `values` for the blocks.
+    pub fn new(values: &'a mut [T]) -> Self {
+        ForceTarget {
+            ptr: values.as_mut_ptr(),
+            len: values.len(),
+            _lifetime: PhantomData,
         }
     }
-}
 
-/// The nodal force array shared by the blocks of one colour.
-struct ForceTarget<'a> {
-    ptr: *mut Vec3,
-    _lifetime: PhantomData<&'a mut [Vec3]>,
-}
-
-// SAFETY: the only access goes through `add`, whose callers guarantee exclusive access
-// per node (see `assemble`).
-unsafe impl Sync for ForceTarget<'_> {}
-unsafe impl Send for ForceTarget<'_> {}
-
-impl ForceTarget<'_> {
-    /// Adds `f` to node `n`. Safety: `n` is in bounds and no other thread touches node
-    /// `n` meanwhile.
+    /// Node `n`. Safety: `n < len` and no other thread touches node `n` while the
+    /// pointer is used.
     #[inline(always)]
-    unsafe fn add(&self, n: usize, f: Vec3) {
-        let p = &mut *self.ptr.add(n);
-        p[0] += f[0];
-        p[1] += f[1];
-        p[2] += f[2];
+    pub unsafe fn node(&self, n: usize) -> *mut T {
+        debug_assert!(n < self.len);
+        self.ptr.add(n)
     }
-}
-
-/// Morton (Z-order) key of a point inside the box [lo, lo + size] (21 bits per axis).
-pub(crate) fn morton_key(p: Vec3, lo: Vec3, size: Vec3) -> u64 {
-    let spread = |v: u64| {
-        let mut x = v & 0x1f_ffff;
-        x = (x | (x << 32)) & 0x1f_0000_0000_ffff;
-        x = (x | (x << 16)) & 0x1f_0000_ff00_00ff;
-        x = (x | (x << 8)) & 0x100f_00f0_0f00_f00f;
-        x = (x | (x << 4)) & 0x10c3_0c30_c30c_30c3;
-        x = (x | (x << 2)) & 0x1249_2492_4924_9249;
-        x
-    };
-    let q = |d: usize| {
-        let t = if size[d] > 0.0 {
-            (p[d] - lo[d]) / size[d]
-        } else {
-            0.0
-        };
-        (t.clamp(0.0, 1.0) * 2_097_151.0) as u64
-    };
-    spread(q(0)) | (spread(q(1)) << 1) | (spread(q(2)) << 2)
 }
 
 #[cfg(test)]
@@ -271,6 +268,7 @@ mod tests {
 
     #[test]
     fn morton_keys_interleave() {
+        use crate::mesh::morton_key;
         let k = morton_key([1.0, 0.0, 0.0], [0.0; 3], [1.0; 3]);
         assert_eq!(k & 0b111, 0b001);
         assert!(morton_key([0.0; 3], [0.0; 3], [1.0; 3]) == 0);

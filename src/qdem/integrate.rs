@@ -16,6 +16,7 @@ use super::boundary::{Boundary, NodalLoad};
 use super::colouring::PARALLEL_MIN_TETS;
 use super::element::{ElementSums, Vec3};
 use super::energy::Energies;
+use super::kernel::Force4;
 use super::model::{ElementTotals, QdemModel};
 use super::stability::stability;
 use crate::{Error, Result};
@@ -121,10 +122,10 @@ const NODE_CHUNK: usize = 4096;
 
 /// One chunk of a node phase: (index, (((x, v), a), sums)) for the drift,
 /// (index, (((v, a), f), sums)) for the kick.
-type ChunkItem<'a, 'b> = (
+type ChunkItem<'a, 'b, R = Vec3> = (
     usize,
     (
-        ((&'a mut [Vec3], &'a mut [Vec3]), &'a [Vec3]),
+        ((&'a mut [Vec3], &'a mut [Vec3]), &'a [R]),
         &'b mut NodeSums,
     ),
 );
@@ -148,7 +149,7 @@ pub struct QdemSolver<'m> {
     masks: Vec<u8>,
     loads: Vec<NodalLoad>,
     gravity: Vec3,
-    forces: Vec<Vec3>,
+    forces: Vec<Force4>,
     /// Kinetic energy the current external forces alone would give in one step,
     /// Σ dt² |f_ext|² / (2m): the blow-up bound's allowance for a load that has only
     /// just started (its work lags the energy by half a step in Verlet).
@@ -210,7 +211,7 @@ impl<'m> QdemSolver<'m> {
             masks,
             loads: boundary.loads.clone(),
             gravity: [boundary.gravity.x, boundary.gravity.y, boundary.gravity.z],
-            forces: vec![[0.0; 3]; n],
+            forces: vec![Force4::default(); n],
             pending_energy: 0.0,
             energy_floor: 0.5e-24 * model.modulus_volume(),
             element_partials: vec![ElementSums::default(); model.colouring.blocks.len()],
@@ -447,7 +448,7 @@ impl<'m> QdemSolver<'m> {
             for &n in &load.nodes {
                 self.pending_energy +=
                     0.5 * dt2 * per_node.norm_squared() / self.model.node_masses()[n as usize];
-                let f = &mut self.forces[n as usize];
+                let f = &mut self.forces[n as usize].0;
                 f[0] += per_node.x;
                 f[1] += per_node.y;
                 f[2] += per_node.z;
@@ -461,7 +462,7 @@ impl<'m> QdemSolver<'m> {
         let masses = self.model.node_masses();
         let (g, rate) = (self.gravity, self.damping_rate());
         let masks = &self.masks;
-        let kick = |(chunk, (((v, a), f), sums)): ChunkItem<'_, '_>| {
+        let kick = |(chunk, (((v, a), f), sums)): ChunkItem<'_, '_, Force4>| {
             let start = chunk * NODE_CHUNK;
             let mut s = NodeSums::default();
             for i in 0..v.len() {
@@ -472,7 +473,7 @@ impl<'m> QdemSolver<'m> {
                     let (ad, vd) = if mask & (1 << d) != 0 {
                         (0.0, 0.0)
                     } else {
-                        let ad = (f[i][d] - rate * m * v[i][d]) / m + g[d];
+                        let ad = (f[i].0[d] - rate * m * v[i][d]) / m + g[d];
                         (ad, v[i][d] + half * ad)
                     };
                     a[i][d] = ad;
@@ -533,7 +534,7 @@ impl<'m> QdemSolver<'m> {
                     let mean = 0.5 * (fd + self.hook_previous[i][d]);
                     work += mean * self.dt * state.velocities[i][d];
                 }
-                self.forces[i][d] += fd;
+                self.forces[i].0[d] += fd;
                 f2 += fd * fd;
             }
             self.pending_energy += 0.5 * dt2 * f2 / m;

@@ -1,27 +1,17 @@
 //! The immutable QDEM model: reference geometry, per-tetra D_m⁻¹ and V_0, materials,
 //! quarter-volume lumped masses (seed 004 §2.4) and the block colouring of the tetra.
 
-use super::colouring::{morton_key, BlockColouring};
+use super::colouring::BlockColouring;
 use super::element::{element_stress, reference_inverse, sym_to_matrix};
-use super::element::{ElementSums, Mat3, Vec3};
-use super::kernel::{self, Batch};
+use super::element::{ElementSums, Vec3};
+use super::kernel::{self, Force4, Inputs, TetBatch, TetElement, LANES};
 use super::material::{ElementMaterial, QdemMaterial};
 use super::stability::StableTimeStep;
 use crate::mesh::TetMesh;
+use crate::mesh::{bounds, morton_key};
 use crate::{Error, Result};
 use nalgebra::{Matrix3, Point3};
 use std::sync::OnceLock;
-
-/// Per-tetra data the hot loop streams through (one record, read once per step).
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct TetElement {
-    /// D_m⁻¹: rows are the reference gradients of N_1, N_2, N_3.
-    pub dm_inv: Mat3,
-    /// Reference volume V_0 (m³).
-    pub ref_volume: f64,
-    /// Index into the model's materials.
-    pub material: u32,
-}
 
 /// A tetrahedral body ready for explicit QDEM stepping. Tetra are stored internally in
 /// Morton order (for cache locality and the block colouring); every public per-tetra
@@ -29,7 +19,9 @@ pub(crate) struct TetElement {
 #[derive(Debug)]
 pub struct QdemModel {
     reference: Vec<Vec3>,
-    pub(crate) elements: Vec<TetElement>,
+    /// The tetra in internal order, [`LANES`] per batch (what the hot loop streams).
+    batches: Vec<TetBatch>,
+    tet_count: usize,
     /// Internal element index → original tetra index.
     element_tet: Vec<u32>,
     pub(crate) materials: Vec<ElementMaterial>,
@@ -80,14 +72,7 @@ impl QdemModel {
         {
             return fail(format!("node {n} has a non-finite coordinate"));
         }
-        let mut lo = [f64::INFINITY; 3];
-        let mut hi = [f64::NEG_INFINITY; 3];
-        for p in &reference {
-            for d in 0..3 {
-                lo[d] = lo[d].min(p[d]);
-                hi[d] = hi[d].max(p[d]);
-            }
-        }
+        let (lo, size) = bounds(reference.iter().copied());
         let mut node_mass = vec![0.0; nodes.len()];
         let mut records = Vec::with_capacity(tets.len());
         let mut min_altitude = f64::INFINITY;
@@ -127,7 +112,6 @@ impl QdemModel {
                 node_mass[n as usize] += quarter;
             }
             let centroid = [0, 1, 2].map(|d| 0.25 * (x[0][d] + x[1][d] + x[2][d] + x[3][d]));
-            let size = [0, 1, 2].map(|d| hi[d] - lo[d]);
             records.push((
                 morton_key(centroid, lo, size),
                 t as u32,
@@ -147,10 +131,16 @@ impl QdemModel {
         let element_tet: Vec<u32> = records.iter().map(|r| r.1).collect();
         let element_nodes: Vec<[u32; 4]> = element_tet.iter().map(|&t| tets[t as usize]).collect();
         let elements: Vec<TetElement> = records.into_iter().map(|r| r.2).collect();
+        let batches = element_nodes
+            .chunks(LANES)
+            .zip(elements.chunks(LANES))
+            .map(|(n, e)| TetBatch::pack(n, e))
+            .collect();
         let colouring = BlockColouring::new(element_nodes, nodes.len());
         Ok(QdemModel {
             reference,
-            elements,
+            batches,
+            tet_count: elements.len(),
             element_tet,
             materials: materials.iter().map(ElementMaterial::from).collect(),
             material_inputs: materials.to_vec(),
@@ -173,7 +163,12 @@ impl QdemModel {
 
     /// Number of tetra.
     pub fn tet_count(&self) -> usize {
-        self.elements.len()
+        self.tet_count
+    }
+
+    /// Tetra `e` of the internal order.
+    pub(crate) fn element(&self, e: usize) -> TetElement {
+        self.batches[e / LANES].element(e % LANES)
     }
 
     /// Reference node positions (m).
@@ -211,30 +206,41 @@ impl QdemModel {
     /// the viscous dissipation rate and the number of inverted tetra.
     pub fn internal_forces(&self, x: &[Vec3], v: &[Vec3], forces: &mut [Vec3]) -> ElementTotals {
         let mut partials = vec![ElementSums::default(); self.colouring.blocks.len()];
-        self.internal_forces_with(x, v, forces, &mut partials)
+        let mut padded = vec![Force4::default(); self.node_count()];
+        let totals = self.internal_forces_with(x, v, &mut padded, &mut partials);
+        assert_eq!(forces.len(), padded.len());
+        for (f, p) in forces.iter_mut().zip(&padded) {
+            *f = p.xyz();
+        }
+        totals
     }
 
-    /// [`Self::internal_forces`] with caller-owned block partials (no allocation).
+    /// [`Self::internal_forces`] into padded node records, with caller-owned block
+    /// partials (no allocation): the stepping path.
     pub(crate) fn internal_forces_with(
         &self,
         x: &[Vec3],
         v: &[Vec3],
-        forces: &mut [Vec3],
+        forces: &mut [Force4],
         partials: &mut [ElementSums],
     ) -> ElementTotals {
         let n = self.node_count();
+        // The kernel's safety contract: every node index (< node_count, checked by the
+        // colouring) is in bounds of x, v and forces.
         assert!(x.len() == n && v.len() == n && forces.len() == n);
-        forces.fill([0.0; 3]);
-        let batch = Batch {
+        forces.fill(Force4::default());
+        let inputs = Inputs {
             x,
             v,
-            nodes: &self.colouring.nodes,
-            elements: &self.elements,
+            batches: &self.batches,
             materials: &self.materials,
         };
+        let target = crate::qdem::colouring::ForceTarget::new(forces);
         self.colouring
-            .assemble(forces, partials, |first, count, sums: &mut ElementSums| {
-                kernel::forces(&batch, first, count, sums)
+            .run_blocks(partials, |block, sums: &mut ElementSums| {
+                // SAFETY: indices in bounds (above); `run_blocks` gives the block's nodes
+                // to this call alone.
+                unsafe { kernel::block_forces(&inputs, block, &target, sums) }
             });
         let mut totals = ElementTotals::default();
         for (p, block) in partials.iter().zip(&self.colouring.blocks) {
@@ -262,7 +268,7 @@ impl QdemModel {
     pub fn stresses(&self, x: &[Vec3], v: &[Vec3]) -> Vec<Matrix3<f64>> {
         let mut out = vec![Matrix3::zeros(); self.tet_count()];
         for (e, tet) in self.colouring.nodes.iter().enumerate() {
-            let el = &self.elements[e];
+            let el = self.element(e);
             let xe = tet.map(|i| x[i as usize]);
             let ve = tet.map(|i| v[i as usize]);
             let st = element_stress(&xe, &ve, &el.dm_inv, &self.materials[el.material as usize]);
@@ -274,18 +280,18 @@ impl QdemModel {
 
     /// Σ V_0 (λ + 2µ) over the tetra (J): the energy scale of a unit strain.
     pub(crate) fn modulus_volume(&self) -> f64 {
-        self.elements
-            .iter()
+        (0..self.tet_count)
             .map(|e| {
-                let m = &self.materials[e.material as usize];
-                e.ref_volume * (m.lambda + 2.0 * m.mu)
+                let el = self.element(e);
+                let m = &self.materials[el.material as usize];
+                el.ref_volume * (m.lambda + 2.0 * m.mu)
             })
             .sum()
     }
 
     /// The material of each internal element (for the stability estimate).
     pub(crate) fn element_material(&self, e: usize) -> &ElementMaterial {
-        &self.materials[self.elements[e].material as usize]
+        &self.materials[self.element(e).material as usize]
     }
 }
 

@@ -141,7 +141,7 @@ fn compute(model: &QdemModel) -> StableTimeStep {
     };
     let mut altitude_estimate = f64::INFINITY;
     for e in 0..model.tet_count() {
-        let el = &model.elements[e];
+        let el = model.element(e);
         let m = model.element_material(e);
         let c = ((m.lambda + 2.0 * m.mu) / m.density).sqrt();
         let mat = &model.materials()[el.material as usize];
@@ -191,7 +191,7 @@ fn stiffness_action(
 /// K_e u_e of one tetra (small strain at the reference configuration).
 fn stiffness_kernel(model: &QdemModel, nodes: &[[u32; 4]], e: usize, u: &[Vec3]) -> [Vec3; 4] {
     {
-        let el = &model.elements[e];
+        let el = model.element(e);
         let m = model.element_material(e);
         let tet = &nodes[e];
         let du = [1, 2, 3].map(|k| {
