@@ -97,7 +97,10 @@ pub fn run_with(ctx: &RunContext, resume: bool) -> Result<()> {
                 max_sweeps: scene.solver.max_sweeps,
             },
         },
-        error_check: ErrorCheck::EverySweep,
+        error_check: match scene.solver.check_every {
+            1 => ErrorCheck::EverySweep,
+            every => ErrorCheck::Light { every },
+        },
     };
     let mut pipeline = MoreauJean::new(params, options);
     if let Some(spec) = &scene.ddm {

@@ -16,6 +16,7 @@
 //! [solver]
 //! tolerance = 1e-8                  # or: sweeps = 50 (fixed count, the seed's n_DDM)
 //! max_sweeps = 2000
+//! check_every = 10                  # full error measure every 10 sweeps (default)
 //! alert_distance = "1 mm"
 //! depenetration_speed = "2 mm/s"    # optional: push existing overlaps out (packings)
 //!
@@ -177,12 +178,22 @@ pub struct SolverSpec {
     /// A fixed number of sweeps per step instead of a tolerance.
     #[serde(default)]
     pub sweeps: Option<usize>,
+    /// Under a tolerance, the full error measure (as costly as a sweep) is taken after
+    /// every this many sweeps, and after any sweep whose relative impulse change is
+    /// already below the tolerance ([`super::nlgs::ErrorCheck::Light`]); 1 measures
+    /// after every sweep. Stopping is always decided on the full measure.
+    #[serde(default = "default_check_every")]
+    pub check_every: usize,
     /// Contacts within this gap enter the problem.
     pub alert_distance: Length,
 }
 
 fn default_max_sweeps() -> usize {
     1000
+}
+
+fn default_check_every() -> usize {
+    10
 }
 
 /// `[gravity]`.
@@ -567,6 +578,11 @@ impl Validate for NscdScene {
         v.check(
             "solver.max_sweeps",
             self.solver.max_sweeps > 0,
+            "must be at least 1",
+        );
+        v.check(
+            "solver.check_every",
+            self.solver.check_every > 0,
             "must be at least 1",
         );
         v.non_negative("solver.alert_distance", self.solver.alert_distance);
