@@ -1,12 +1,20 @@
-# NSCD throughput (issue #5): the NLGS's contact updates/s on scenes/drop_box.toml's
-# bench preset (200 stones, 0.45 s), on 1 and 2 threads, NSCD_BENCH_REPEAT runs each
-# (alternating thread counts; the machine is shared, so the table keeps medians), with the
-# phase times (detect, build, solve, update). Part of `make bench`.
+# NSCD throughput (issue #5): the NLGS's contact updates/s on scenes/drop_box.toml, with
+# the phase times (detect, build, solve, update), NSCD_BENCH_REPEAT runs of each case
+# (alternating; the machine is shared, so the table keeps medians). Part of `make bench`.
+#   - preset bench (200 stones): sequential NLGS on 1 thread, AVX2+FMA and portable
+#     kernels (the baseline, BALLAST_KERNEL=portable);
+#   - preset bench_ddm (800 stones): sequential NLGS on 1 thread, and the synchronous
+#     DDM on 2 threads (the per-core figure of the parallel NLGS).
 # Included by the main Makefile, which defines PY, RELEASE, STONE_MESHES, VENV_STAMP.
 
 NSCD_BENCH_REPEAT ?= 3
-NSCD_BENCH_THREADS ?= 1 2
 NSCD_BENCH_OUT := results/bench-nscd
+# name : preset : threads : kernel : extra arguments
+NSCD_BENCH_CASES := \
+  small-seq-1:bench:1:auto: \
+  small-seq-1-portable:bench:1:portable: \
+  large-seq-1:bench_ddm:1:auto: \
+  large-ddm-2:bench_ddm:2:auto:--set=ddm.driver=synchronous
 
 .PHONY: bench-nscd
 bench: bench-nscd
@@ -14,9 +22,10 @@ bench: bench-nscd
 bench-nscd: $(RELEASE)/ballast-nscd $(STONE_MESHES) | $(VENV_STAMP)
 	@rm -rf $(NSCD_BENCH_OUT)
 	@for k in $$(seq $(NSCD_BENCH_REPEAT)); do \
-	  for t in $(NSCD_BENCH_THREADS); do \
-	    $(RELEASE)/ballast-nscd scenes/drop_box.toml --preset bench --threads $$t \
-	      --out $(NSCD_BENCH_OUT)/threads-$$t/run-$$k >/dev/null || exit 1; \
+	  for case in $(NSCD_BENCH_CASES); do \
+	    IFS=: read -r name preset threads kernel extra <<< "$$case"; \
+	    BALLAST_KERNEL=$$kernel $(RELEASE)/ballast-nscd scenes/drop_box.toml --preset $$preset \
+	      --threads $$threads $${extra/=/ } --out $(NSCD_BENCH_OUT)/$$name/run-$$k >/dev/null || exit 1; \
 	  done; \
 	done
 	$(PY) tools/nscd_bench.py $(NSCD_BENCH_OUT) | tee $(NSCD_BENCH_OUT)/table.md

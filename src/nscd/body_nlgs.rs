@@ -25,8 +25,9 @@ use std::time::{Duration, Instant};
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 
-use super::coulomb::{coulomb_residual_squared, ContactStatus, LocalCoulomb};
+use super::coulomb::{coulomb_residual_squared, invert, ContactStatus, LocalCoulomb};
 use super::nlgs::{NlgsOptions, NlgsReport, Stopping};
+use crate::simd::{F64x4, Portable4};
 
 /// Contacts per parallel task of the error measure (fixed, so that its partial sums,
 /// and so the stopping decision, do not depend on the thread count).
@@ -57,27 +58,27 @@ pub struct BodyInverses<'a> {
     pub inverse_inertia: &'a [Matrix3<f64>],
 }
 
-/// One contact's data for the sweep, as plain f64 arrays in lanes of four (the three
-/// local or world components and a zero pad), so that the compiler can pair them in
-/// vector registers; the local solver's cold data is kept apart in [`LocalCoulomb`].
+/// One contact's data for the sweep, in world lanes of four `[x, y, z, 0]` so that each
+/// row loads into one vector register (see [`crate::simd`]); the local solver's cold data
+/// is kept apart in [`LocalCoulomb`].
 #[derive(Debug, Clone)]
+#[repr(C, align(32))]
 pub(crate) struct Prepared {
-    pub(crate) bodies: [usize; 2],
-    pub(crate) moves: [bool; 2],
-    /// The first body does not move and has zero velocity (set by [`solve`]).
-    resting_first: bool,
-    /// Columns of the local Jacobian on `[v_j − v_i, ω_j, ω_i]`: `f_k[x]`, `A_j[x][k]`,
-    /// `A_i[x][k]` in lane k (the ω_i columns enter with a minus sign).
-    columns: [[f64; 4]; 9],
-    /// Rows n, t, s of the frame (world lanes).
-    frame: [[f64; 4]; 3],
-    /// ± I⁻¹ A_s columns (world lanes; negated for the first body, which receives −Δr).
+    /// Rows of the local Jacobian: for k = n, t, s, `jacobian[k] = [f_k, A_j,k, A_i,k]`,
+    /// acting on `v_j − v_i`, `ω_j` and `−ω_i`.
+    jacobian: [[[f64; 4]; 3]; 3],
+    /// ± I⁻¹ A_s columns (negated for the first body, which receives −Δr).
     spin: [[[f64; 4]; 3]; 2],
+    /// W_aa, row-major (exactly symmetric).
+    w: [f64; 9],
+    /// W_aa⁻¹ when W_aa is not singular (the local solver's, computed once here).
+    w_inverse: Option<[f64; 9]>,
     /// ± 1/m (negated for the first body).
     inverse_mass: [f64; 2],
     shift: f64,
     mu: f64,
-    w: [f64; 9],
+    pub(crate) bodies: [usize; 2],
+    moves: [bool; 2],
 }
 
 /// `[x, y, z, 0]`.
@@ -86,18 +87,24 @@ fn lanes(v: &Vector3<f64>) -> [f64; 4] {
     [v.x, v.y, v.z, 0.0]
 }
 
+/// The velocity `[v, 0]` and angular velocity `[ω, 0]` halves of a body's state.
+#[inline(always)]
+fn halves(b: &BodyState) -> (&[f64; 4], &[f64; 4]) {
+    let (v, w) = b.split_at(4);
+    (v.try_into().unwrap(), w.try_into().unwrap())
+}
+
 impl Prepared {
-    fn new(row: &ContactRow, inv: &BodyInverses) -> Self {
+    /// A contact's sweep data.
+    pub(crate) fn new(row: &ContactRow, inv: &BodyInverses) -> Self {
         let bodies = [row.bodies[0] as usize, row.bodies[1] as usize];
-        let mut columns = [[0.0; 4]; 9];
+        let mut jacobian = [[[0.0; 4]; 3]; 3];
         let mut spin = [[[0.0; 4]; 3]; 2];
         let mut inverse_mass = [0.0; 2];
         let mut moves = [false; 2];
         let mut w = [0.0; 9];
         for (k, f) in row.frame.iter().enumerate() {
-            for x in 0..3 {
-                columns[x][k] = f[x];
-            }
+            jacobian[k][0] = lanes(f);
         }
         for s in 0..2 {
             let b = bodies[s];
@@ -108,14 +115,12 @@ impl Prepared {
             inverse_mass[s] = sign * im;
             let mut cross = [Vector3::zeros(); 3];
             let mut turn = [Vector3::zeros(); 3];
-            // Body j's columns are 3..6, body i's 6..9.
-            let first = if s == 0 { 6 } else { 3 };
+            // Body j's rows are part 1, body i's part 2.
+            let part = if s == 0 { 2 } else { 1 };
             for k in 0..3 {
                 cross[k] = row.arms[s].cross(&row.frame[k]);
                 turn[k] = ii * cross[k];
-                for x in 0..3 {
-                    columns[first + x][k] = cross[k][x];
-                }
+                jacobian[k][part] = lanes(&cross[k]);
                 spin[s][k] = lanes(&(sign * turn[k]));
             }
             for k in 0..3 {
@@ -132,34 +137,21 @@ impl Prepared {
             w[3 * l + k] = m;
         }
         Prepared {
-            bodies,
-            moves,
-            resting_first: false,
-            columns,
-            frame: [
-                lanes(&row.frame[0]),
-                lanes(&row.frame[1]),
-                lanes(&row.frame[2]),
-            ],
+            jacobian,
             spin,
+            w,
+            w_inverse: invert(&w),
             inverse_mass,
             shift: row.shift,
             mu: row.mu,
-            w,
+            bodies,
+            moves,
         }
     }
 
-    /// A contact's sweep data for the free velocities `state` (which tell whether its
-    /// first body rests).
-    pub(crate) fn at_state(row: &ContactRow, inv: &BodyInverses, state: &[BodyState]) -> Self {
-        let mut c = Prepared::new(row, inv);
-        c.resting_first = !c.moves[0] && state[c.bodies[0]] == [0.0; 8];
-        c
-    }
-
-    /// Its local Coulomb solver (W_aa and µ).
+    /// Its local Coulomb solver (W_aa, its inverse and µ).
     pub(crate) fn local_solver(&self) -> LocalCoulomb {
-        LocalCoulomb::new(&self.w, self.mu)
+        LocalCoulomb::with_inverse(&self.w, self.w_inverse, self.mu)
     }
 
     /// The same contact on another numbering of the bodies (a subdomain's own state).
@@ -170,53 +162,82 @@ impl Prepared {
         }
     }
 
-    /// The relative velocity (local, gap shift included) from the bodies' states.
-    /// Each component is `(f_k·Δv) + (A_j,k·ω_j) − (A_i,k·ω_i)`, every dot product
-    /// summed as `(a₀b₀ + a₁b₁) + a₂b₂` (nalgebra's order).
-    #[inline(always)]
+    /// The relative velocity (local, gap shift included) from the bodies' states, in
+    /// plain arithmetic (the error measure and the set-up).
     pub(crate) fn velocity(&self, state: &[BodyState]) -> [f64; 3] {
-        let c = &self.columns;
-        let sj = &state[self.bodies[1]];
-        let mut u = [0.0; 4];
-        if self.resting_first {
-            // The first body is at rest and stays so (floor, walls): the same sums
-            // without its zero terms (x − 0 = x and y − (±0) = y exactly).
-            for (k, uk) in u.iter_mut().enumerate() {
-                *uk = (c[0][k] * sj[0] + c[1][k] * sj[1] + c[2][k] * sj[2])
-                    + (c[3][k] * sj[4] + c[4][k] * sj[5] + c[5][k] * sj[6]);
-            }
-        } else {
-            let si = &state[self.bodies[0]];
-            let dv = [sj[0] - si[0], sj[1] - si[1], sj[2] - si[2]];
-            for (k, uk) in u.iter_mut().enumerate() {
-                *uk = (c[0][k] * dv[0] + c[1][k] * dv[1] + c[2][k] * dv[2])
-                    + (c[3][k] * sj[4] + c[4][k] * sj[5] + c[5][k] * sj[6])
-                    - (c[6][k] * si[4] + c[7][k] * si[5] + c[8][k] * si[6]);
-            }
-        }
-        [u[0] + self.shift, u[1], u[2]]
+        let (dv, wj, wi) = self.body_lanes::<Portable4>(state);
+        [
+            self.row::<Portable4>(0, dv, wj, wi) + self.shift,
+            self.row::<Portable4>(1, dv, wj, wi),
+            self.row::<Portable4>(2, dv, wj, wi),
+        ]
     }
 
-    /// Applies the impulse change `d` to the two bodies.
-    #[inline(always)]
+    /// Applies the impulse change `d` to the two bodies, in plain arithmetic.
     fn apply(&self, d: [f64; 3], state: &mut [BodyState]) {
-        let f = &self.frame;
-        let mut world = [0.0; 4];
-        for (x, wx) in world.iter_mut().enumerate() {
-            *wx = f[0][x] * d[0] + f[1][x] * d[1] + f[2][x] * d[2];
-        }
+        self.apply_lanes::<Portable4>(d, state);
+    }
+
+    /// `v_j − v_i`, `ω_j`, `ω_i` as lanes.
+    #[inline(always)]
+    fn body_lanes<V: F64x4>(&self, state: &[BodyState]) -> (V, V, V) {
+        let (vi, wi) = halves(&state[self.bodies[0]]);
+        let (vj, wj) = halves(&state[self.bodies[1]]);
+        (V::load(vj) - V::load(vi), V::load(wj), V::load(wi))
+    }
+
+    /// Component k of the relative velocity without the gap shift:
+    /// `f_k·(v_j − v_i) + A_j,k·ω_j − A_i,k·ω_i`.
+    #[inline(always)]
+    fn row<V: F64x4>(&self, k: usize, dv: V, wj: V, wi: V) -> f64 {
+        let j = &self.jacobian[k];
+        let own = V::load(&j[1]) * wj;
+        V::load(&j[0])
+            .mul_add(dv, V::load(&j[2]).neg_mul_add(wi, own))
+            .sum()
+    }
+
+    /// Adds `F d / m_j`, `I_j⁻¹ A_j d` to body j and the opposite to body i.
+    #[inline(always)]
+    fn apply_lanes<V: F64x4>(&self, d: [f64; 3], state: &mut [BodyState]) {
+        let (d0, d1, d2) = (V::splat(d[0]), V::splat(d[1]), V::splat(d[2]));
+        let j = &self.jacobian;
+        let world =
+            V::load(&j[2][0]).mul_add(d2, V::load(&j[1][0]).mul_add(d1, V::load(&j[0][0]) * d0));
         for s in 0..2 {
             if !self.moves[s] {
                 continue;
             }
-            let m = self.inverse_mass[s];
-            let sp = &self.spin[s];
+            let spin = &self.spin[s];
+            let turn = V::load(&spin[2])
+                .mul_add(d2, V::load(&spin[1]).mul_add(d1, V::load(&spin[0]) * d0));
             let b = &mut state[self.bodies[s]];
-            for x in 0..4 {
-                b[x] += m * world[x];
-                b[4 + x] += sp[0][x] * d[0] + sp[1][x] * d[1] + sp[2][x] * d[2];
-            }
+            let (v, w) = b.split_at_mut(4);
+            let v: &mut [f64; 4] = v.try_into().unwrap();
+            let w: &mut [f64; 4] = w.try_into().unwrap();
+            *v = V::splat(self.inverse_mass[s])
+                .mul_add(world, V::load(v))
+                .to_array();
+            *w = (V::load(w) + turn).to_array();
         }
+    }
+
+    /// Stick, `r = −W⁻¹ q` strictly inside the cone (µ > 0), exactly as
+    /// [`LocalCoulomb::solve`] tests it first; `None` otherwise (the local solver
+    /// decides).
+    #[inline(always)]
+    fn stick(&self, q: [f64; 3]) -> Option<[f64; 3]> {
+        let inv = match &self.w_inverse {
+            Some(inv) if self.mu > 0.0 => inv,
+            _ => return None,
+        };
+        let r = [
+            -(inv[0] * q[0] + inv[1] * q[1] + inv[2] * q[2]),
+            -(inv[3] * q[0] + inv[4] * q[1] + inv[5] * q[2]),
+            -(inv[6] * q[0] + inv[7] * q[1] + inv[8] * q[2]),
+        ];
+        let cone = self.mu * r[0];
+        (r[0] > 0.0 && r[1] * r[1] + r[2] * r[2] <= cone * cone).then_some(r)
     }
 }
 
@@ -310,10 +331,11 @@ impl SweepStats {
 /// directions), updating the bodies' velocities in `state` in place. The contacts'
 /// body indices refer to `state`.
 ///
-/// Compiled twice: for AVX2 (chosen at run time when the CPU has it) and for the
-/// baseline. The arithmetic is written without fused operations and Rust never fuses
-/// on its own, so both give bitwise the same result; AVX2 only packs the four lanes of
-/// the contact records into one register instead of two.
+/// Per contact: the normal relative velocity first; an open contact (zero impulse)
+/// that is separating stays open without the rest (four in five contacts of a falling
+/// heap); otherwise the full local free velocity, stick tried inline, the local solver
+/// for the rest, and the impulse change applied to the two bodies. The lane arithmetic
+/// runs on AVX2 + FMA when [`crate::simd::avx2_fma`] holds.
 pub(crate) fn sweep(
     contacts: &[Prepared],
     locals: &[LocalCoulomb],
@@ -323,16 +345,16 @@ pub(crate) fn sweep(
 ) -> SweepStats {
     #[cfg(target_arch = "x86_64")]
     {
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU has AVX2 (checked just above).
+        if crate::simd::avx2_fma() {
+            // SAFETY: the CPU has AVX2 and FMA (checked just above).
             return unsafe { sweep_avx2(contacts, locals, impulse, directions, state) };
         }
     }
-    sweep_body(contacts, locals, impulse, directions, state)
+    sweep_lanes::<Portable4>(contacts, locals, impulse, directions, state)
 }
 
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,fma")]
 unsafe fn sweep_avx2(
     contacts: &[Prepared],
     locals: &[LocalCoulomb],
@@ -340,11 +362,11 @@ unsafe fn sweep_avx2(
     directions: &mut [[f64; 2]],
     state: &mut [BodyState],
 ) -> SweepStats {
-    sweep_body(contacts, locals, impulse, directions, state)
+    sweep_lanes::<crate::simd::avx::Avx4>(contacts, locals, impulse, directions, state)
 }
 
 #[inline(always)]
-fn sweep_body(
+fn sweep_lanes<V: F64x4>(
     contacts: &[Prepared],
     locals: &[LocalCoulomb],
     impulse: &mut [[f64; 3]],
@@ -358,18 +380,26 @@ fn sweep_body(
         .zip(impulse.iter_mut())
         .zip(directions.iter_mut())
     {
-        let u = c.velocity(state);
-        let w = &c.w;
         let o = *old;
+        let (dv, wj, wi) = c.body_lanes::<V>(state);
+        let un = c.row(0, dv, wj, wi) + c.shift;
+        if un >= 0.0 && o == [0.0; 3] {
+            // Open and separating: r stays 0 (q = u), nothing changes.
+            continue;
+        }
+        let w = &c.w;
         let q = [
-            u[0] - (w[0] * o[0] + w[1] * o[1] + w[2] * o[2]),
-            u[1] - (w[3] * o[0] + w[4] * o[1] + w[5] * o[2]),
-            u[2] - (w[6] * o[0] + w[7] * o[1] + w[8] * o[2]),
+            un - (w[0] * o[0] + w[1] * o[1] + w[2] * o[2]),
+            c.row(1, dv, wj, wi) - (w[3] * o[0] + w[4] * o[1] + w[5] * o[2]),
+            c.row(2, dv, wj, wi) - (w[6] * o[0] + w[7] * o[1] + w[8] * o[2]),
         ];
-        // Take-off (q_N ≥ 0, the most common case among open contacts) without
-        // calling the local solver.
+        // (No closures on this path: see crate::simd.)
+        let stick = if q[0] < 0.0 { c.stick(q) } else { None };
         let r = if q[0] >= 0.0 {
+            // Take-off without the local solver.
             [0.0; 3]
+        } else if let Some(r) = stick {
+            r
         } else {
             let (r, status) = local.solve(q, direction);
             if status == ContactStatus::Fallback {
@@ -379,7 +409,7 @@ fn sweep_body(
         };
         let d = [r[0] - o[0], r[1] - o[1], r[2] - o[2]];
         if d != [0.0; 3] {
-            c.apply(d, state);
+            c.apply_lanes::<V>(d, state);
         }
         let scale = w[0] * w[0];
         stats.change += scale * (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
@@ -387,6 +417,50 @@ fn sweep_body(
         *old = r;
     }
     stats
+}
+
+/// The error measure's sums over some contacts: `[Σ ‖e_a‖², Σ ‖r̂_a‖², Σ ‖u_a‖²]`
+/// (module docs), with the relative velocities on the same lanes as the sweep.
+fn measure_chunk(contacts: &[Prepared], impulse: &[[f64; 3]], state: &[BodyState]) -> [f64; 3] {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if crate::simd::avx2_fma() {
+            #[target_feature(enable = "avx2,fma")]
+            unsafe fn on_avx(c: &[Prepared], i: &[[f64; 3]], s: &[BodyState]) -> [f64; 3] {
+                measure_lanes::<crate::simd::avx::Avx4>(c, i, s)
+            }
+            // SAFETY: the CPU has AVX2 and FMA (checked just above).
+            return unsafe { on_avx(contacts, impulse, state) };
+        }
+    }
+    measure_lanes::<Portable4>(contacts, impulse, state)
+}
+
+#[inline(always)]
+fn measure_lanes<V: F64x4>(
+    contacts: &[Prepared],
+    impulse: &[[f64; 3]],
+    state: &[BodyState],
+) -> [f64; 3] {
+    let (mut sum, mut r_norm, mut u_norm) = (0.0, 0.0, 0.0);
+    for (c, r) in contacts.iter().zip(impulse) {
+        let (dv, wj, wi) = c.body_lanes::<V>(state);
+        let u = [
+            c.row(0, dv, wj, wi) + c.shift,
+            c.row(1, dv, wj, wi),
+            c.row(2, dv, wj, wi),
+        ];
+        u_norm += u[0] * u[0] + u[1] * u[1] + u[2] * u[2];
+        if *r == [0.0; 3] && u[0] >= 0.0 {
+            // Open and separating: the residual is exactly zero (Π_K(−ũ) = 0 when
+            // u_N ≥ 0, in floating point too), r̂ = 0.
+            continue;
+        }
+        let scaled = [c.w[0] * r[0], c.w[0] * r[1], c.w[0] * r[2]];
+        sum += coulomb_residual_squared(scaled, u, c.mu);
+        r_norm += scaled[0] * scaled[0] + scaled[1] * scaled[1] + scaled[2] * scaled[2];
+    }
+    [sum, r_norm, u_norm]
 }
 
 /// [`solve`] with the iteration given by the caller: `iteration(contacts, impulse,
@@ -420,7 +494,7 @@ where
         impulse,
         options,
         iteration,
-        |_| {},
+        |_, _| {},
     );
     problem.finish(velocity, angular_velocity);
     report.solve_time = start.elapsed();
@@ -459,7 +533,7 @@ impl Problem {
         // In parallel, collected in order.
         let prepared: Vec<Prepared> = rows
             .par_iter()
-            .map(|r| Prepared::at_state(r, inverses, &state))
+            .map(|r| Prepared::new(r, inverses))
             .collect();
         // The local solvers (W_aa, its inverse, µ): read only by contacts that reach
         // them.
@@ -498,8 +572,8 @@ impl Problem {
 /// Iterates on a [`Problem`]'s parts (so that other threads may borrow the contacts
 /// while this one owns the state) until the stopping rule of `options` (see
 /// [`solve`]): `iteration` makes one iteration and returns its statistics; `gather`
-/// makes `impulse` current, for a driver whose blocks keep their own impulses (called
-/// before every error measure and once at the end). `impulse` is the warm start given
+/// makes `impulse` and `state` current, for a driver whose blocks keep their own
+/// impulses and velocities (called before every error measure and once at the end). `impulse` is the warm start given
 /// to [`Problem::new`] and holds the result. The report's `solve_time` is left at zero.
 pub fn run<F, G>(
     contacts: &Sweepable,
@@ -512,7 +586,7 @@ pub fn run<F, G>(
 ) -> NlgsReport
 where
     F: FnMut(&Sweepable, &mut [[f64; 3]], &mut [[f64; 2]], &mut [BodyState]) -> SweepStats,
-    G: FnMut(&mut [[f64; 3]]),
+    G: FnMut(&mut [[f64; 3]], &mut [BodyState]),
 {
     let prepared = &contacts.prepared;
     let rows_len = prepared.len();
@@ -540,23 +614,7 @@ where
             let parts: Vec<[f64; 3]> = prepared
                 .par_chunks(MEASURE_CHUNK)
                 .zip(impulse.par_chunks(MEASURE_CHUNK))
-                .map(|(contacts, impulse)| {
-                    let (mut sum, mut r_norm, mut u_norm) = (0.0, 0.0, 0.0);
-                    for (c, r) in contacts.iter().zip(impulse) {
-                        let u = c.velocity(state);
-                        u_norm += u[0] * u[0] + u[1] * u[1] + u[2] * u[2];
-                        if *r == [0.0; 3] && u[0] >= 0.0 {
-                            // Open and separating: the residual is exactly zero
-                            // (Π_K(−ũ) = 0 when u_N ≥ 0, in floating point too), r̂ = 0.
-                            continue;
-                        }
-                        let scaled = [c.w[0] * r[0], c.w[0] * r[1], c.w[0] * r[2]];
-                        sum += coulomb_residual_squared(scaled, u, c.mu);
-                        r_norm +=
-                            scaled[0] * scaled[0] + scaled[1] * scaled[1] + scaled[2] * scaled[2];
-                    }
-                    [sum, r_norm, u_norm]
-                })
+                .map(|(contacts, impulse)| measure_chunk(contacts, impulse, state))
                 .collect();
             let (mut sum, mut r_norm, mut u_norm) = (0.0, 0.0, 0.0);
             for p in parts {
@@ -581,7 +639,7 @@ where
                     .error_check
                     .due(report.iterations, stats.change, stats.size, tolerance);
             if full {
-                gather(impulse);
+                gather(impulse, state);
                 report.error = measure(impulse, state);
                 report.error_evaluations += 1;
                 if report.error <= tolerance {
@@ -590,7 +648,7 @@ where
                 }
             }
         }
-        gather(impulse);
+        gather(impulse, state);
         if !report.converged {
             report.error = measure(impulse, state);
             report.error_evaluations += 1;

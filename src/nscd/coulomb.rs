@@ -112,9 +112,14 @@ const GRID: usize = 96;
 impl LocalCoulomb {
     /// Prepares the local solver of a contact with diagonal block `w` and friction `mu`.
     pub fn new(w: &Block3, mu: f64) -> Self {
+        Self::with_inverse(w, invert(w), mu)
+    }
+
+    /// [`Self::new`] with `w`'s inverse already computed by [`invert`].
+    pub(crate) fn with_inverse(w: &Block3, w_inverse: Option<Block3>, mu: f64) -> Self {
         LocalCoulomb {
             w: *w,
-            w_inverse: invert(w),
+            w_inverse,
             mu,
         }
     }
@@ -321,8 +326,8 @@ fn newton(equation: &SlipEquation, start: [f64; 2]) -> Option<[f64; 2]> {
 #[inline]
 fn rotate(d: [f64; 2], step: f64) -> [f64; 2] {
     let (c, s) = (d[0] - step * d[1], d[1] + step * d[0]);
-    let norm = norm2(c, s);
-    [c / norm, s / norm]
+    let inverse = 1.0 / norm2(c, s);
+    [c * inverse, s * inverse]
 }
 
 /// A root of f in [lo, hi] where f(lo) = `f_lo` and f(hi) have opposite signs: Newton
@@ -362,7 +367,7 @@ fn bisect_newton(equation: &SlipEquation, mut lo: f64, mut hi: f64, f_lo: f64) -
 }
 
 /// The inverse of a 3 × 3 block, `None` when it is singular to rounding.
-fn invert(w: &Block3) -> Option<Block3> {
+pub(crate) fn invert(w: &Block3) -> Option<Block3> {
     let cofactor = [
         w[4] * w[8] - w[5] * w[7],
         w[5] * w[6] - w[3] * w[8],

@@ -52,6 +52,7 @@ struct LoopState {
 /// (written by a run of the same scene, preset and overrides).
 pub fn run_with(ctx: &RunContext, resume: bool) -> Result<()> {
     let threads = ctx.configure_threads()?;
+    crate::simd::requested_path().map_err(Error::Message)?;
     let mut timer = PhaseTimer::new();
     let (scene, inputs): (NscdScene, _) = timer.time("read scene", || ctx.load_scene())?;
     let Model {
@@ -135,10 +136,11 @@ pub fn run_with(ctx: &RunContext, resume: bool) -> Result<()> {
     let dynamic = bodies.iter().filter(|b| b.is_dynamic()).count();
     println!(
         "ballast-nscd: {} — {} bodies ({dynamic} dynamic), {steps} steps of {dt:.3e} s, θ = {}, \
-         {threads} threads",
+         {threads} threads, {} kernel",
         ctx.scene_path.display(),
         bodies.len(),
-        params.theta
+        params.theta,
+        crate::simd::vector_path()
     );
 
     let has_driven_vtk = bodies
@@ -365,6 +367,7 @@ pub fn run_with(ctx: &RunContext, resume: bool) -> Result<()> {
                 stats.max_rise
             },
         )
+        .figure("kernel", crate::simd::vector_path())
         .figure(
             "contact_updates_per_s",
             stats.sweeps_contacts as f64 / timer.get("solve").as_secs_f64().max(1e-12),

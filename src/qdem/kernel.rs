@@ -2,18 +2,17 @@
 //!
 //! The tetra are stored in batches of [`LANES`] in lane layout ([`TetBatch`]: every
 //! reference quantity is a `[f64; LANES]`, so it loads straight into one vector
-//! register). One batch is computed by [`batch_forces`], written once over a small
-//! vector type ([`Simd`]) with two implementations:
-//! - AVX2 + FMA (x86-64 CPUs since 2013, chosen at run time): the vertices are gathered
-//!   with masked loads and a 4 × 4 transpose, products are fused multiply-adds, and the
-//!   forces are transposed back and added to 32-byte node records ([`Force4`]) with
-//!   whole-vector loads and stores;
+//! register). One batch is computed by [`batch_forces`], written once over the lane
+//! types of [`crate::simd`] plus the gather and scatter of [`Gather`]:
+//! - AVX2 + FMA: a vertex is gathered with a masked load (`[x, y, z, 0]`) and a 4 × 4
+//!   transpose gives the x, y, z lanes; products are fused multiply-adds; the forces are
+//!   transposed back and added to 32-byte node records ([`Force4`]) with one vector load
+//!   and store; the batch stream is prefetched;
 //! - portable: the same formulas on plain arrays, unfused.
 //!
-//! The two differ in the last bits (fused against unfused rounding), so a machine always
-//! takes the same path: on one machine the forces are bitwise the same for any thread
-//! count (the colouring fixes the summation order). Both agree with the scalar reference
-//! [`super::element::element_forces`] to round-off (tests below).
+//! On one machine the forces are bitwise the same for any thread count (one path per
+//! process, and the colouring fixes the summation order); both paths agree with the
+//! scalar reference [`super::element::element_forces`] to round-off (tests below).
 
 // Lane loops index several arrays by the same lane: that is the point (SIMD packing).
 #![allow(clippy::needless_range_loop)]
@@ -21,7 +20,8 @@
 use super::colouring::ForceTarget;
 use super::element::{ElementSums, Mat3, Vec3};
 use super::material::ElementMaterial;
-use std::ops::{Add, Div, Mul, Range, Sub};
+use crate::simd::{F64x4, Portable4};
+use std::ops::Range;
 
 /// Tetra handed to the kernel at once (SIMD lanes).
 pub(crate) const LANES: usize = 4;
@@ -128,44 +128,15 @@ pub(crate) unsafe fn block_forces(
 ) {
     #[cfg(target_arch = "x86_64")]
     {
-        if avx::available() {
+        if crate::simd::avx2_fma() {
             return avx::block_forces(inputs, range, target, sums);
         }
     }
-    block_body::<Portable>(inputs, range, target, sums)
-}
-
-/// Environment variable that forces a kernel path: `portable` (the baseline of
-/// `make bench`) or `auto` (the default: the fastest the CPU has).
-pub const KERNEL_ENV: &str = "BALLAST_KERNEL";
-
-/// The path [`KERNEL_ENV`] asks for (`None` when unset or `auto`); an error line naming
-/// the variable for any other value.
-pub fn requested_path() -> Result<Option<&'static str>, String> {
-    match std::env::var(KERNEL_ENV) {
-        Err(_) => Ok(None),
-        Ok(v) if v == "auto" => Ok(None),
-        Ok(v) if v == "portable" => Ok(Some("portable")),
-        Ok(v) => Err(format!(
-            "environment variable {KERNEL_ENV}={v:?}: expected \"auto\" or \"portable\""
-        )),
-    }
-}
-
-/// The kernel path this process takes: `"AVX2+FMA"` or `"portable"` (reported with
-/// throughput figures, which depend on it).
-pub fn vector_path() -> &'static str {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if avx::available() {
-            return "AVX2+FMA";
-        }
-    }
-    "portable"
+    block_body::<Portable4>(inputs, range, target, sums)
 }
 
 #[inline(always)]
-unsafe fn block_body<S: Simd>(
+unsafe fn block_body<S: Gather>(
     inputs: &Inputs<'_>,
     range: Range<usize>,
     target: &ForceTarget<'_, Force4>,
@@ -188,19 +159,8 @@ unsafe fn block_body<S: Simd>(
 
 const PREFETCH_AHEAD: usize = 12;
 
-/// Lanes of f64 with the operations the kernel needs.
-trait Simd:
-    Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> + Div<Output = Self>
-{
-    fn splat(a: f64) -> Self;
-    fn load(a: &[f64; LANES]) -> Self;
-    fn to_array(self) -> [f64; LANES];
-    /// Hints that the batch at `p` (possibly past the end: never dereferenced) is next.
-    fn prefetch(_p: *const TetBatch) {}
-    /// `self * b + c` (fused where the hardware has it).
-    fn mul_add(self, b: Self, c: Self) -> Self;
-    /// `self * b − c` (fused where the hardware has it).
-    fn mul_sub(self, b: Self, c: Self) -> Self;
+/// The kernel's memory operations on a lane type.
+trait Gather: F64x4 {
     /// Edge vectors `e[k][d]` = `p[nodes[k + 1]][d] − p[nodes[0]][d]` of each lane.
     /// Safety: the node indices are below `p.len()`.
     unsafe fn edges(p: &[Vec3], nodes: &[[u32; LANES]; 4]) -> [[Self; 3]; 3];
@@ -212,6 +172,8 @@ trait Simd:
         f: &[[Self; 3]; 4],
         count: usize,
     );
+    /// Hints that the batch at `p` (possibly past the end: never dereferenced) is next.
+    fn prefetch(_p: *const TetBatch) {}
 }
 
 /// The material constants of a batch as lanes.
@@ -224,7 +186,7 @@ struct Constants<S> {
 }
 
 #[inline(always)]
-fn constants<S: Simd>(materials: &[ElementMaterial], index: &[u32; LANES]) -> Constants<S> {
+fn constants<S: F64x4>(materials: &[ElementMaterial], index: &[u32; LANES]) -> Constants<S> {
     let first = &materials[index[0] as usize];
     if index[1..].iter().all(|&i| i == index[0]) {
         return Constants {
@@ -256,13 +218,13 @@ fn constants<S: Simd>(materials: &[ElementMaterial], index: &[u32; LANES]) -> Co
 
 /// `a₀b₀ + a₁b₁ + a₂b₂` as two fused steps.
 #[inline(always)]
-fn dot3<S: Simd>(a: [S; 3], b: [S; 3]) -> S {
+fn dot3<S: F64x4>(a: [S; 3], b: [S; 3]) -> S {
     a[2].mul_add(b[2], a[1].mul_add(b[1], a[0] * b[0]))
 }
 
 /// a × c.
 #[inline(always)]
-fn cross<S: Simd>(a: [S; 3], c: [S; 3]) -> [S; 3] {
+fn cross<S: F64x4>(a: [S; 3], c: [S; 3]) -> [S; 3] {
     [
         a[1].mul_sub(c[2], a[2] * c[1]),
         a[2].mul_sub(c[0], a[0] * c[2]),
@@ -272,7 +234,7 @@ fn cross<S: Simd>(a: [S; 3], c: [S; 3]) -> [S; 3] {
 
 /// Symmetric (xx, yy, zz, xy, yz, zx) times a vector.
 #[inline(always)]
-fn sym_times<S: Simd>(t: &[S; 6], g: [S; 3]) -> [S; 3] {
+fn sym_times<S: F64x4>(t: &[S; 6], g: [S; 3]) -> [S; 3] {
     [
         dot3([t[0], t[3], t[5]], g),
         dot3([t[3], t[1], t[4]], g),
@@ -282,7 +244,7 @@ fn sym_times<S: Simd>(t: &[S; 6], g: [S; 3]) -> [S; 3] {
 
 /// λ tr(a) I + 2µ a for a symmetric a.
 #[inline(always)]
-fn hooke<S: Simd>(lambda: S, mu: S, a: &[S; 6]) -> [S; 6] {
+fn hooke<S: F64x4>(lambda: S, mu: S, a: &[S; 6]) -> [S; 6] {
     let two_mu = mu + mu;
     let lt = lambda * (a[0] + a[1] + a[2]);
     [
@@ -297,7 +259,7 @@ fn hooke<S: Simd>(lambda: S, mu: S, a: &[S; 6]) -> [S; 6] {
 
 /// a : b for symmetric tensors (off-diagonal terms counted twice).
 #[inline(always)]
-fn contract<S: Simd>(a: &[S; 6], b: &[S; 6]) -> S {
+fn contract<S: F64x4>(a: &[S; 6], b: &[S; 6]) -> S {
     let diagonal = dot3([a[0], a[1], a[2]], [b[0], b[1], b[2]]);
     let off = dot3([a[3], a[4], a[5]], [b[3], b[4], b[5]]);
     off.mul_add(S::splat(2.0), diagonal)
@@ -305,7 +267,7 @@ fn contract<S: Simd>(a: &[S; 6], b: &[S; 6]) -> S {
 
 /// One batch: gather, eq. 1–10, scatter.
 #[inline(always)]
-unsafe fn batch_forces<S: Simd>(
+unsafe fn batch_forces<S: Gather>(
     inputs: &Inputs<'_>,
     b: &TetBatch,
     count: usize,
@@ -398,50 +360,10 @@ unsafe fn batch_forces<S: Simd>(
     }
 }
 
-/// Plain arrays, unfused arithmetic: any CPU.
-#[derive(Clone, Copy)]
-struct Portable([f64; LANES]);
-
-macro_rules! portable_op {
-    ($trait:ident, $method:ident, $op:tt) => {
-        impl $trait for Portable {
-            type Output = Self;
-            #[inline(always)]
-            fn $method(self, o: Self) -> Self {
-                Portable(std::array::from_fn(|l| self.0[l] $op o.0[l]))
-            }
-        }
-    };
-}
-portable_op!(Add, add, +);
-portable_op!(Sub, sub, -);
-portable_op!(Mul, mul, *);
-portable_op!(Div, div, /);
-
-impl Simd for Portable {
-    #[inline(always)]
-    fn splat(a: f64) -> Self {
-        Portable([a; LANES])
-    }
-    #[inline(always)]
-    fn load(a: &[f64; LANES]) -> Self {
-        Portable(*a)
-    }
-    #[inline(always)]
-    fn to_array(self) -> [f64; LANES] {
-        self.0
-    }
-    #[inline(always)]
-    fn mul_add(self, b: Self, c: Self) -> Self {
-        self * b + c
-    }
-    #[inline(always)]
-    fn mul_sub(self, b: Self, c: Self) -> Self {
-        self * b - c
-    }
+impl Gather for Portable4 {
     #[inline(always)]
     unsafe fn edges(p: &[Vec3], nodes: &[[u32; LANES]; 4]) -> [[Self; 3]; 3] {
-        let mut e = [[Portable([0.0; LANES]); 3]; 3];
+        let mut e = [[Portable4([0.0; LANES]); 3]; 3];
         for l in 0..LANES {
             let x0 = p[nodes[0][l] as usize];
             for k in 0..3 {
@@ -473,21 +395,10 @@ impl Simd for Portable {
 
 #[cfg(target_arch = "x86_64")]
 mod avx {
-    //! The AVX2 + FMA lanes: `__m256d`.
+    //! The gather and scatter of the AVX2 + FMA lanes.
     use super::*;
+    use crate::simd::avx::Avx4;
     use std::arch::x86_64::*;
-
-    /// Whether this path runs: the CPU has AVX2 and FMA, and [`KERNEL_ENV`] does not
-    /// ask for the portable one. Decided once per process.
-    #[inline(always)]
-    pub(super) fn available() -> bool {
-        static CHOICE: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-        *CHOICE.get_or_init(|| {
-            std::arch::is_x86_feature_detected!("avx2")
-                && std::arch::is_x86_feature_detected!("fma")
-                && requested_path() != Ok(Some("portable"))
-        })
-    }
 
     /// [`super::block_forces`] compiled for AVX2 + FMA.
     /// Safety: as [`super::block_forces`], and the CPU has AVX2 and FMA.
@@ -498,46 +409,26 @@ mod avx {
         target: &ForceTarget<'_, Force4>,
         sums: &mut ElementSums,
     ) {
-        block_body::<Avx>(inputs, range, target, sums)
+        block_body::<Avx4>(inputs, range, target, sums)
     }
-
-    #[derive(Clone, Copy)]
-    pub(super) struct Avx(__m256d);
-
-    macro_rules! avx_op {
-        ($trait:ident, $method:ident, $intrinsic:ident) => {
-            impl $trait for Avx {
-                type Output = Self;
-                #[inline(always)]
-                fn $method(self, o: Self) -> Self {
-                    // SAFETY: only reached from `block_forces`, which needs AVX2.
-                    Avx(unsafe { $intrinsic(self.0, o.0) })
-                }
-            }
-        };
-    }
-    avx_op!(Add, add, _mm256_add_pd);
-    avx_op!(Sub, sub, _mm256_sub_pd);
-    avx_op!(Mul, mul, _mm256_mul_pd);
-    avx_op!(Div, div, _mm256_div_pd);
 
     /// Rows `[x, y, z, _]` of four lanes → columns x, y, z.
     #[inline(always)]
-    unsafe fn columns(r: [__m256d; 4]) -> [Avx; 3] {
+    unsafe fn columns(r: [__m256d; 4]) -> [Avx4; 3] {
         let t0 = _mm256_unpacklo_pd(r[0], r[1]); // x0 x1 z0 z1
         let t1 = _mm256_unpackhi_pd(r[0], r[1]); // y0 y1 _ _
         let t2 = _mm256_unpacklo_pd(r[2], r[3]); // x2 x3 z2 z3
         let t3 = _mm256_unpackhi_pd(r[2], r[3]); // y2 y3 _ _
         [
-            Avx(_mm256_permute2f128_pd(t0, t2, 0x20)),
-            Avx(_mm256_permute2f128_pd(t1, t3, 0x20)),
-            Avx(_mm256_permute2f128_pd(t0, t2, 0x31)),
+            Avx4(_mm256_permute2f128_pd(t0, t2, 0x20)),
+            Avx4(_mm256_permute2f128_pd(t1, t3, 0x20)),
+            Avx4(_mm256_permute2f128_pd(t0, t2, 0x31)),
         ]
     }
 
     /// Columns x, y, z of four lanes → rows `[x, y, z, 0]`.
     #[inline(always)]
-    unsafe fn rows(c: &[Avx; 3]) -> [__m256d; 4] {
+    unsafe fn rows(c: &[Avx4; 3]) -> [__m256d; 4] {
         let zero = _mm256_setzero_pd();
         let t0 = _mm256_unpacklo_pd(c[0].0, c[1].0); // x0 y0 x2 y2
         let t1 = _mm256_unpackhi_pd(c[0].0, c[1].0); // x1 y1 x3 y3
@@ -551,44 +442,7 @@ mod avx {
         ]
     }
 
-    impl Simd for Avx {
-        #[inline(always)]
-        fn splat(a: f64) -> Self {
-            // SAFETY: as the operators.
-            Avx(unsafe { _mm256_set1_pd(a) })
-        }
-        #[inline(always)]
-        fn load(a: &[f64; LANES]) -> Self {
-            // SAFETY: four f64 in bounds; as the operators.
-            Avx(unsafe { _mm256_loadu_pd(a.as_ptr()) })
-        }
-        #[inline(always)]
-        fn to_array(self) -> [f64; LANES] {
-            let mut a = [0.0; LANES];
-            // SAFETY: four f64 in bounds; as the operators.
-            unsafe { _mm256_storeu_pd(a.as_mut_ptr(), self.0) };
-            a
-        }
-        #[inline(always)]
-        fn prefetch(p: *const TetBatch) {
-            let p = p as *const i8;
-            // SAFETY: a prefetch never faults, whatever the address.
-            unsafe {
-                for line in 0..(std::mem::size_of::<TetBatch>() / 64) {
-                    _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64 * line));
-                }
-            }
-        }
-        #[inline(always)]
-        fn mul_add(self, b: Self, c: Self) -> Self {
-            // SAFETY: only reached from `block_forces`, which needs FMA.
-            Avx(unsafe { _mm256_fmadd_pd(self.0, b.0, c.0) })
-        }
-        #[inline(always)]
-        fn mul_sub(self, b: Self, c: Self) -> Self {
-            // SAFETY: only reached from `block_forces`, which needs FMA.
-            Avx(unsafe { _mm256_fmsub_pd(self.0, b.0, c.0) })
-        }
+    impl Gather for Avx4 {
         #[inline(always)]
         unsafe fn edges(p: &[Vec3], nodes: &[[u32; LANES]; 4]) -> [[Self; 3]; 3] {
             let mask = _mm256_set_epi64x(0, -1, -1, -1);
@@ -597,7 +451,7 @@ mod avx {
             for l in 0..LANES {
                 origin[l] = _mm256_maskload_pd(base.add(3 * nodes[0][l] as usize), mask);
             }
-            let mut e = [[Avx(_mm256_setzero_pd()); 3]; 3];
+            let mut e = [[Avx4(_mm256_setzero_pd()); 3]; 3];
             for k in 0..3 {
                 let mut r = [_mm256_setzero_pd(); 4];
                 for l in 0..LANES {
@@ -620,6 +474,16 @@ mod avx {
                 for k in 0..4 {
                     let p = target.node(nodes[k][l] as usize) as *mut f64;
                     _mm256_store_pd(p, _mm256_add_pd(_mm256_load_pd(p), r[k][l]));
+                }
+            }
+        }
+        #[inline(always)]
+        fn prefetch(p: *const TetBatch) {
+            let p = p as *const i8;
+            // SAFETY: a prefetch never faults, whatever the address.
+            unsafe {
+                for line in 0..(std::mem::size_of::<TetBatch>() / 64) {
+                    _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64 * line));
                 }
             }
         }
@@ -734,7 +598,7 @@ mod tests {
             assert_eq!(sums.inverted, 0);
         };
         check("portable", &|t, s| unsafe {
-            block_body::<Portable>(&inputs, 0..7, t, s)
+            block_body::<Portable4>(&inputs, 0..7, t, s)
         });
         check("dispatched", &|t, s| unsafe {
             block_forces(&inputs, 0..7, t, s)

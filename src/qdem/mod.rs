@@ -53,7 +53,6 @@ pub use boundary::{Boundary, Constraints, Directions, NodalLoad, TimeFunction};
 pub use element::{linear_tetra_forces, subsurface_forces, von_mises};
 pub use energy::Energies;
 pub use integrate::{Damping, ForceHook, QdemOptions, QdemSolver, State};
-pub use kernel::{requested_path, vector_path, KERNEL_ENV};
 pub use material::QdemMaterial;
 pub use model::{ElementTotals, QdemModel};
 pub use stability::{stability, stable_time_step, StableTimeStep, RECOMMENDED_FRACTION};

@@ -59,7 +59,7 @@ pub struct CaseRun {
 /// Runs every case of the scene and writes the summary.
 pub fn run(ctx: &RunContext, force: bool) -> Result<()> {
     let threads = ctx.configure_threads()?;
-    crate::qdem::requested_path().map_err(Error::Message)?;
+    crate::simd::requested_path().map_err(Error::Message)?;
     let mut timer = PhaseTimer::new();
     let (scene, inputs): (SolidScene, _) = timer.time("read scene", || ctx.load_scene())?;
     let spec = scene.qdem.clone().ok_or_else(|| {
@@ -79,7 +79,7 @@ pub fn run(ctx: &RunContext, force: bool) -> Result<()> {
         mesh_path.display(),
         mesh.nodes.len(),
         mesh.tets.len(),
-        crate::qdem::vector_path()
+        crate::simd::vector_path()
     ));
     let mut runs = Vec::new();
     for case in scene.cases() {
@@ -101,7 +101,7 @@ pub fn run(ctx: &RunContext, force: bool) -> Result<()> {
         .figure("stable_dt_s", runs[0].stable.stable)
         .figure("dt_s", runs[0].dt)
         .figure("steps", runs[0].steps)
-        .figure("kernel", crate::qdem::vector_path())
+        .figure("kernel", crate::simd::vector_path())
         .figure(
             "tetra_updates_per_s",
             runs.iter().map(|r| r.tetra_updates_per_s).sum::<f64>() / runs.len() as f64,
