@@ -31,7 +31,7 @@
 //! whole problem, counted in DDM iterations.
 
 use std::ops::Range;
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicPtr, AtomicUsize, Ordering};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
@@ -39,7 +39,7 @@ use nalgebra::{Matrix3, Vector3};
 
 use super::partition::Decomposition;
 use crate::nscd::body_nlgs::{
-    self, BodyInverses, BodyState, ContactRow, Prepared, Problem, SweepStats, Sweepable,
+    self, Bodies, BodyInverses, BodyState, ContactRow, Prepared, Problem, SweepStats, Sweepable,
 };
 use crate::nscd::coulomb::LocalCoulomb;
 use crate::nscd::nlgs::{NlgsOptions, NlgsReport};
@@ -88,24 +88,38 @@ pub struct DdmReport {
     pub interface_time: Duration,
 }
 
-/// One block's own copy of the velocities it touches.
-struct Block {
-    /// Its contacts (in the global numbering).
-    range: Range<usize>,
+/// A block's own copy of the velocities its contacts touch (asynchronous driver).
+struct OwnVelocities {
     /// Its contacts with bodies renumbered into `state`.
     prepared: Vec<Prepared>,
-    /// Its own local solvers when its contacts see split masses (else the problem's).
-    locals: Option<Vec<LocalCoulomb>>,
+    /// Its own local solvers (its contacts see split masses).
+    locals: Vec<LocalCoulomb>,
     /// Local body → global body.
     global: Vec<usize>,
     /// Whether each local body moves (is written back).
     moves: Vec<bool>,
-    /// The local moving bodies that interface contacts also touch (synchronous driver):
-    /// the only ones exchanged with the global state between iterations; the others
-    /// only this block changes, and they are written back before an error measure.
-    shared: Vec<usize>,
     /// The velocities of its bodies.
     state: Vec<BodyState>,
+}
+
+impl OwnVelocities {
+    /// Refreshes the moving bodies from the global state.
+    fn refresh(&mut self, state: &[BodyState]) {
+        for ((&g, s), &m) in self.global.iter().zip(&mut self.state).zip(&self.moves) {
+            if m {
+                *s = state[g];
+            }
+        }
+    }
+}
+
+/// One block of contacts: a subdomain, or (asynchronous driver) the interface.
+struct Block {
+    /// Its contacts (in the global numbering).
+    range: Range<usize>,
+    /// `None`: it sweeps the problem's contacts on the global velocities (synchronous
+    /// driver; its contacts move only its own grains).
+    own: Option<OwnVelocities>,
     /// Its contacts' impulses and slip directions (the block owns them while sweeping).
     impulse: Vec<[f64; 3]>,
     directions: Vec<[f64; 2]>,
@@ -116,18 +130,30 @@ struct Block {
 }
 
 impl Block {
-    /// The block of contacts `range`, whose sweep data (bodies in the global
-    /// numbering) and own local solvers (or none: the problem's) are `data`; its state
-    /// copied from `state`, its impulses from `impulse`; which bodies move and which
-    /// the interface touches. `slot` is scratch of one entry per body, all
-    /// `usize::MAX` on entry and on return.
-    fn new(
-        (prepared, locals): (&[Prepared], Option<Vec<LocalCoulomb>>),
+    /// The block of contacts `range` on the global velocities, its impulses from
+    /// `impulse`.
+    fn shared(range: Range<usize>, impulse: &[[f64; 3]], sweeps: usize) -> Self {
+        Block {
+            impulse: impulse[range.clone()].to_vec(),
+            directions: vec![[0.0; 2]; range.len()],
+            range,
+            own: None,
+            sweeps,
+            stats: SweepStats::default(),
+        }
+    }
+
+    /// The block of contacts `range` with its own copy of the velocities: its sweep
+    /// data `prepared` (bodies in the global numbering) and local solvers; its state
+    /// copied from `state`, its impulses from `impulse`; `moving` tells which bodies
+    /// move. `slot` is scratch of one entry per body, all `usize::MAX` on entry and on
+    /// return.
+    fn own(
+        (prepared, locals): (&[Prepared], Vec<LocalCoulomb>),
         range: Range<usize>,
-        state: &[BodyState],
-        impulse: &[[f64; 3]],
+        (state, impulse): (&[BodyState], &[[f64; 3]]),
         sweeps: usize,
-        (moving, on_interface): (&[bool], &[bool]),
+        moving: &[bool],
         slot: &mut [usize],
     ) -> Self {
         let mut global = Vec::new();
@@ -147,69 +173,40 @@ impl Block {
             slot[b] = usize::MAX;
         }
         Block {
-            impulse: impulse[range.clone()].to_vec(),
-            directions: vec![[0.0; 2]; range.len()],
-            range,
-            prepared: relabelled,
-            locals,
-            moves: global.iter().map(|&b| moving[b]).collect(),
-            shared: (0..global.len())
-                .filter(|&l| moving[global[l]] && on_interface[global[l]])
-                .collect(),
-            state: global.iter().map(|&b| state[b]).collect(),
-            global,
-            sweeps,
-            stats: SweepStats::default(),
-        }
-    }
-
-    /// The block's NLGS sweeps of one DDM iteration on its own state; keeps the last
-    /// sweep's statistics.
-    fn sweep(&mut self, contacts: &Sweepable) {
-        let locals = match &self.locals {
-            Some(own) => own.as_slice(),
-            None => &contacts.locals[self.range.clone()],
-        };
-        for _ in 0..self.sweeps {
-            self.stats = body_nlgs::sweep(
-                &self.prepared,
+            own: Some(OwnVelocities {
+                prepared: relabelled,
                 locals,
-                &mut self.impulse,
-                &mut self.directions,
-                &mut self.state,
-            );
+                moves: global.iter().map(|&b| moving[b]).collect(),
+                state: global.iter().map(|&b| state[b]).collect(),
+                global,
+            }),
+            ..Block::shared(range, impulse, sweeps)
         }
     }
 
-    /// Writes the block's moving bodies into the global state.
-    fn write_back(&self, state: &mut [BodyState]) {
-        for ((&g, s), &m) in self.global.iter().zip(&self.state).zip(&self.moves) {
-            if m {
-                state[g] = *s;
-            }
-        }
-    }
-
-    /// Refreshes the block's moving bodies from the global state.
-    fn refresh(&mut self, state: &[BodyState]) {
-        for ((&g, s), &m) in self.global.iter().zip(&mut self.state).zip(&self.moves) {
-            if m {
-                *s = state[g];
-            }
-        }
-    }
-
-    /// Writes the bodies it shares with the interface into the global state.
-    fn write_back_shared(&self, state: &mut [BodyState]) {
-        for &l in &self.shared {
-            state[self.global[l]] = self.state[l];
-        }
-    }
-
-    /// Refreshes the bodies it shares with the interface from the global state.
-    fn refresh_shared(&mut self, state: &[BodyState]) {
-        for &l in &self.shared {
-            self.state[l] = state[self.global[l]];
+    /// The block's NLGS sweeps of one DDM iteration, on its own state or on `global`
+    /// (blocks without their own); keeps the last sweep's statistics. Safety: with
+    /// `global`, no other thread touches the bodies this block's contacts move, nor
+    /// writes the others they read, meanwhile.
+    unsafe fn sweep(&mut self, contacts: &Sweepable, global: Option<Bodies<'_>>) {
+        for _ in 0..self.sweeps {
+            self.stats = match (&mut self.own, global) {
+                (Some(own), _) => body_nlgs::sweep(
+                    &own.prepared,
+                    &own.locals,
+                    &mut self.impulse,
+                    &mut self.directions,
+                    &mut own.state,
+                ),
+                (None, Some(global)) => body_nlgs::sweep_on(
+                    &contacts.prepared[self.range.clone()],
+                    &contacts.locals[self.range.clone()],
+                    &mut self.impulse,
+                    &mut self.directions,
+                    global,
+                ),
+                (None, None) => unreachable!("a shared block swept without the velocities"),
+            };
         }
     }
 }
@@ -305,15 +302,6 @@ pub fn solve(
         multiplicity = block_multiplicity(rows, &ranges, &moving, state.len());
         SplitMasses::new(inverses, &multiplicity)
     });
-    // Synchronous: the bodies the interface sweep reads and writes.
-    let mut on_interface = vec![false; state.len()];
-    if !asynchronous {
-        for row in &rows[decomposition.interface.clone()] {
-            for &b in &row.bodies {
-                on_interface[b as usize] = true;
-            }
-        }
-    }
     let blocks: Vec<Mutex<Block>> = ranges
         .iter()
         .zip(&sweeps)
@@ -325,34 +313,16 @@ pub fn solve(
                         .map(|row| Prepared::new(row, &split.inverses()))
                         .collect();
                     let locals = prepared.iter().map(Prepared::local_solver).collect();
-                    let own = (&prepared[..], Some(locals));
-                    Block::new(
-                        own,
-                        r.clone(),
-                        state,
-                        impulse,
-                        n,
-                        (&moving, &on_interface),
-                        &mut slot,
-                    )
+                    let own = (&prepared[..], locals);
+                    Block::own(own, r.clone(), (state, impulse), n, &moving, &mut slot)
                 }
-                None => {
-                    let shared = (&contacts.prepared[r.clone()], None);
-                    Block::new(
-                        shared,
-                        r.clone(),
-                        state,
-                        impulse,
-                        n,
-                        (&moving, &on_interface),
-                        &mut slot,
-                    )
-                }
+                None => Block::shared(r.clone(), impulse, n),
             };
             Mutex::new(block)
         })
         .collect();
-    let mut sums: Vec<BodyState> = vec![[0.0; 8]; if asynchronous { state.len() } else { 0 }];
+    let mut sums: Vec<BodyState> =
+        vec![BodyState::default(); if asynchronous { state.len() } else { 0 }];
     let team = Team::new(blocks.len());
     let helpers = rayon::current_num_threads()
         .min(blocks.len())
@@ -379,7 +349,13 @@ pub fn solve(
             options,
             |contacts, impulse, directions, state| {
                 let clock = Instant::now();
-                team.iterate(&blocks, contacts);
+                // Synchronous: the subdomains sweep the global velocities in place,
+                // each moving only its own grains (a view that lives for this loop).
+                team.iterate(
+                    &blocks,
+                    contacts,
+                    (!asynchronous).then(|| Bodies::new(state)),
+                );
                 let mut stats = SweepStats::default();
                 let mut blocks: Vec<_> = blocks
                     .iter()
@@ -391,8 +367,8 @@ pub fn solve(
                 if asynchronous {
                     // A body one block touches takes that block's copy; one that k
                     // blocks touch, the mean of the k copies (summed in block order).
-                    for b in blocks.iter() {
-                        for ((&g, s), &m) in b.global.iter().zip(&b.state).zip(&b.moves) {
+                    for own in blocks.iter().filter_map(|b| b.own.as_ref()) {
+                        for ((&g, s), &m) in own.global.iter().zip(&own.state).zip(&own.moves) {
                             if !m {
                                 continue;
                             }
@@ -411,13 +387,14 @@ pub fn solve(
                             for x in 0..8 {
                                 state[g][x] = sums[g][x] / k;
                             }
-                            sums[g] = [0.0; 8];
+                            sums[g] = BodyState::default();
                         }
                     }
-                    blocks.iter_mut().for_each(|b| b.refresh(state));
+                    for own in blocks.iter_mut().filter_map(|b| b.own.as_mut()) {
+                        own.refresh(state);
+                    }
                     subdomain_time += clock.elapsed();
                 } else {
-                    blocks.iter().for_each(|b| b.write_back_shared(state));
                     subdomain_time += clock.elapsed();
                     let clock = Instant::now();
                     let gamma = decomposition.interface.clone();
@@ -432,20 +409,17 @@ pub fn solve(
                         );
                     }
                     stats.add(&last);
-                    blocks.iter_mut().for_each(|b| b.refresh_shared(state));
                     interface_time += clock.elapsed();
                 }
                 stats
             },
-            |impulse, state| {
-                // The blocks' impulses and velocities, only when the measure or the
-                // caller reads them (the asynchronous driver keeps `state` current).
+            |impulse, _| {
+                // The blocks' impulses, only when the measure or the caller reads them
+                // (the velocities are current: the synchronous blocks sweep them in
+                // place, the asynchronous driver merges them every iteration).
                 for b in &blocks {
                     let b = b.lock().expect("a block not poisoned");
                     impulse[b.range.clone()].copy_from_slice(&b.impulse);
-                    if !asynchronous {
-                        b.write_back(state);
-                    }
                 }
             },
         );
@@ -476,6 +450,10 @@ struct Team {
     completed: AtomicUsize,
     /// Set when the solve is over.
     stopped: AtomicBool,
+    /// This iteration's view of the global velocities (null: none), published by the
+    /// epoch's increment.
+    view: AtomicPtr<BodyState>,
+    view_len: AtomicUsize,
     blocks: usize,
 }
 
@@ -486,35 +464,54 @@ impl Team {
             next: AtomicUsize::new(blocks),
             completed: AtomicUsize::new(0),
             stopped: AtomicBool::new(false),
+            view: AtomicPtr::new(std::ptr::null_mut()),
+            view_len: AtomicUsize::new(0),
             blocks,
         }
     }
 
     /// Claims and sweeps blocks until none is left.
-    fn claim(&self, blocks: &[Mutex<Block>], contacts: &Sweepable) {
+    fn claim(&self, blocks: &[Mutex<Block>], contacts: &Sweepable, view: Option<Bodies<'_>>) {
         loop {
             let k = self.next.fetch_add(1, Ordering::AcqRel);
             if k >= self.blocks {
                 return;
             }
-            blocks[k]
-                .lock()
-                .expect("a block not poisoned")
-                .sweep(contacts);
+            let mut block = blocks[k].lock().expect("a block not poisoned");
+            // SAFETY: the blocks of the synchronous driver are the subdomains, whose
+            // contacts move only their own grains and read only those and bodies that
+            // do not move (crate::ddm::partition): blocks swept at the same time touch
+            // disjoint moving bodies. The view is valid until `iterate` returns, which
+            // waits for every block of the iteration.
+            unsafe { block.sweep(contacts, view) };
+            drop(block);
             self.completed.fetch_add(1, Ordering::AcqRel);
         }
     }
 
-    /// The main thread: one iteration's block sweeps, with whoever helps.
-    fn iterate(&self, blocks: &[Mutex<Block>], contacts: &Sweepable) {
+    /// The main thread: one iteration's block sweeps, with whoever helps, on `view` for
+    /// blocks without their own velocities.
+    fn iterate(&self, blocks: &[Mutex<Block>], contacts: &Sweepable, view: Option<Bodies<'_>>) {
+        let (ptr, len) = view.map_or((std::ptr::null_mut(), 0), |v| v.raw());
+        self.view.store(ptr, Ordering::Relaxed);
+        self.view_len.store(len, Ordering::Relaxed);
         self.completed.store(0, Ordering::Release);
         self.next.store(0, Ordering::Release);
         self.epoch.fetch_add(1, Ordering::AcqRel);
-        self.claim(blocks, contacts);
+        self.claim(blocks, contacts, view);
         let mut spins = 0u32;
         while self.completed.load(Ordering::Acquire) < self.blocks {
             backoff(&mut spins);
         }
+    }
+
+    /// The view `iterate` published with the current epoch.
+    fn published_view(&self) -> Option<Bodies<'_>> {
+        let ptr = self.view.load(Ordering::Relaxed);
+        // SAFETY: published by `iterate` before the epoch this helper has seen (with
+        // acquire ordering), and valid until that iteration's blocks are all swept.
+        (!ptr.is_null())
+            .then(|| unsafe { Bodies::from_raw(ptr, self.view_len.load(Ordering::Relaxed)) })
     }
 
     /// A helper: sweeps blocks at each new iteration until the solve stops.
@@ -525,7 +522,7 @@ impl Team {
             let epoch = self.epoch.load(Ordering::Acquire);
             if epoch != seen {
                 seen = epoch;
-                self.claim(blocks, contacts);
+                self.claim(blocks, contacts, self.published_view());
                 spins = 0;
             } else if self.stopped.load(Ordering::Acquire) {
                 return;

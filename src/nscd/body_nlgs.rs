@@ -20,6 +20,7 @@
 //! `√(Σ_a ‖r̂_a − Π_K(r̂_a − ũ_a)‖²) / max(‖q‖, ‖r̂‖, ‖u‖)`, with q the local free
 //! velocities (the relative velocities before any impulse).
 
+use std::marker::PhantomData;
 use std::time::{Duration, Instant};
 
 use nalgebra::{Matrix3, Vector3};
@@ -92,6 +93,56 @@ fn lanes(v: &Vector3<f64>) -> [f64; 4] {
 fn halves(b: &BodyState) -> (&[f64; 4], &[f64; 4]) {
     let (v, w) = b.split_at(4);
     (v.try_into().unwrap(), w.try_into().unwrap())
+}
+
+/// The bodies' velocities as the sweep reads and writes them: a raw view of one array,
+/// so that the subdomains of the synchronous DDM can sweep the global array at the same
+/// time ([`crate::ddm`]: each subdomain's contacts move only its own grains and read
+/// only those and bodies that do not move), without copies.
+#[derive(Clone, Copy)]
+pub(crate) struct Bodies<'a> {
+    ptr: *mut BodyState,
+    len: usize,
+    _array: PhantomData<&'a mut [BodyState]>,
+}
+
+// SAFETY: the view is only dereferenced through `get`, whose callers guarantee that
+// no two threads touch the same body while one of them writes it.
+unsafe impl Send for Bodies<'_> {}
+unsafe impl Sync for Bodies<'_> {}
+
+impl<'a> Bodies<'a> {
+    /// A view of `state` (borrowed for as long as the view is used).
+    pub(crate) fn new(state: &'a mut [BodyState]) -> Self {
+        Bodies {
+            ptr: state.as_mut_ptr(),
+            len: state.len(),
+            _array: PhantomData,
+        }
+    }
+
+    /// The raw parts, to hand the view to another thread ([`Self::from_raw`]).
+    pub(crate) fn raw(&self) -> (*mut BodyState, usize) {
+        (self.ptr, self.len)
+    }
+
+    /// A view from [`Self::raw`]'s parts. Safety: the array they come from outlives
+    /// every use of the view, and no exclusive borrow of it is used meanwhile.
+    pub(crate) unsafe fn from_raw(ptr: *mut BodyState, len: usize) -> Self {
+        Bodies {
+            ptr,
+            len,
+            _array: PhantomData,
+        }
+    }
+
+    /// Body `i` (checked against the array's length). Safety: no other thread writes
+    /// body `i` while the pointer is used, nor reads it while this one writes.
+    #[inline(always)]
+    pub(crate) unsafe fn get(&self, i: usize) -> *mut BodyState {
+        assert!(i < self.len, "body {i} of {}", self.len);
+        self.ptr.add(i)
+    }
 }
 
 impl Prepared {
@@ -175,14 +226,21 @@ impl Prepared {
 
     /// Applies the impulse change `d` to the two bodies, in plain arithmetic.
     fn apply(&self, d: [f64; 3], state: &mut [BodyState]) {
-        self.apply_lanes::<Portable4>(d, state);
+        // SAFETY: the view is made from the exclusive borrow just here.
+        unsafe { self.apply_lanes::<Portable4>(d, Bodies::new(state)) };
     }
 
     /// `v_j − v_i`, `ω_j`, `ω_i` as lanes.
     #[inline(always)]
     fn body_lanes<V: F64x4>(&self, state: &[BodyState]) -> (V, V, V) {
-        let (vi, wi) = halves(&state[self.bodies[0]]);
-        let (vj, wj) = halves(&state[self.bodies[1]]);
+        Self::lanes_of(&state[self.bodies[0]], &state[self.bodies[1]])
+    }
+
+    /// `v_j − v_i`, `ω_j`, `ω_i` as lanes, from the two bodies' states.
+    #[inline(always)]
+    fn lanes_of<V: F64x4>(first: &BodyState, second: &BodyState) -> (V, V, V) {
+        let (vi, wi) = halves(first);
+        let (vj, wj) = halves(second);
         (V::load(vj) - V::load(vi), V::load(wj), V::load(wi))
     }
 
@@ -198,8 +256,9 @@ impl Prepared {
     }
 
     /// Adds `F d / m_j`, `I_j⁻¹ A_j d` to body j and the opposite to body i.
+    /// Safety: as [`Bodies::get`] for the bodies this contact moves.
     #[inline(always)]
-    fn apply_lanes<V: F64x4>(&self, d: [f64; 3], state: &mut [BodyState]) {
+    unsafe fn apply_lanes<V: F64x4>(&self, d: [f64; 3], state: Bodies<'_>) {
         let (d0, d1, d2) = (V::splat(d[0]), V::splat(d[1]), V::splat(d[2]));
         let j = &self.jacobian;
         let world =
@@ -211,7 +270,7 @@ impl Prepared {
             let spin = &self.spin[s];
             let turn = V::load(&spin[2])
                 .mul_add(d2, V::load(&spin[1]).mul_add(d1, V::load(&spin[0]) * d0));
-            let b = &mut state[self.bodies[s]];
+            let b = &mut *state.get(self.bodies[s]);
             let (v, w) = b.split_at_mut(4);
             let v: &mut [f64; 4] = v.try_into().unwrap();
             let w: &mut [f64; 4] = w.try_into().unwrap();
@@ -280,8 +339,26 @@ pub fn solve(
     )
 }
 
-/// A body's velocities in the sweep: `[v, 0, ω, 0]` (world), padded to lanes of four.
-pub type BodyState = [f64; 8];
+/// A body's velocities in the sweep: `[v, 0, ω, 0]` (world), padded to lanes of four,
+/// one 64-byte cache line per body: the synchronous DDM's subdomains write their own
+/// grains in one array at the same time, and two grains of different subdomains must
+/// not share a line (false sharing cost 10 % of the parallel part).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[repr(C, align(64))]
+pub struct BodyState(pub [f64; 8]);
+
+impl std::ops::Deref for BodyState {
+    type Target = [f64; 8];
+    fn deref(&self) -> &[f64; 8] {
+        &self.0
+    }
+}
+
+impl std::ops::DerefMut for BodyState {
+    fn deref_mut(&mut self) -> &mut [f64; 8] {
+        &mut self.0
+    }
+}
 
 /// The contacts of one problem, ready to sweep: the per-contact sweep data and the
 /// local Coulomb solvers, in the order of the rows.
@@ -343,11 +420,26 @@ pub(crate) fn sweep(
     directions: &mut [[f64; 2]],
     state: &mut [BodyState],
 ) -> SweepStats {
+    // SAFETY: the view is made from the exclusive borrow just here.
+    unsafe { sweep_on(contacts, locals, impulse, directions, Bodies::new(state)) }
+}
+
+/// [`sweep`] on a view of the bodies. Safety: while it runs, no other thread writes a
+/// body these contacts touch, nor touches a body they move (a body with a nonzero
+/// inverse mass in their rows).
+pub(crate) unsafe fn sweep_on(
+    contacts: &[Prepared],
+    locals: &[LocalCoulomb],
+    impulse: &mut [[f64; 3]],
+    directions: &mut [[f64; 2]],
+    state: Bodies<'_>,
+) -> SweepStats {
     #[cfg(target_arch = "x86_64")]
     {
         if crate::simd::avx2_fma() {
-            // SAFETY: the CPU has AVX2 and FMA (checked just above).
-            return unsafe { sweep_avx2(contacts, locals, impulse, directions, state) };
+            // SAFETY: the CPU has AVX2 and FMA (checked just above); the caller's
+            // guarantee for `state`.
+            return sweep_avx2(contacts, locals, impulse, directions, state);
         }
     }
     sweep_lanes::<Portable4>(contacts, locals, impulse, directions, state)
@@ -360,18 +452,18 @@ unsafe fn sweep_avx2(
     locals: &[LocalCoulomb],
     impulse: &mut [[f64; 3]],
     directions: &mut [[f64; 2]],
-    state: &mut [BodyState],
+    state: Bodies<'_>,
 ) -> SweepStats {
     sweep_lanes::<crate::simd::avx::Avx4>(contacts, locals, impulse, directions, state)
 }
 
 #[inline(always)]
-fn sweep_lanes<V: F64x4>(
+unsafe fn sweep_lanes<V: F64x4>(
     contacts: &[Prepared],
     locals: &[LocalCoulomb],
     impulse: &mut [[f64; 3]],
     directions: &mut [[f64; 2]],
-    state: &mut [BodyState],
+    state: Bodies<'_>,
 ) -> SweepStats {
     let mut stats = SweepStats::default();
     for (((c, local), old), direction) in contacts
@@ -381,7 +473,8 @@ fn sweep_lanes<V: F64x4>(
         .zip(directions.iter_mut())
     {
         let o = *old;
-        let (dv, wj, wi) = c.body_lanes::<V>(state);
+        let (dv, wj, wi) =
+            Prepared::lanes_of::<V>(&*state.get(c.bodies[0]), &*state.get(c.bodies[1]));
         let un = c.row(0, dv, wj, wi) + c.shift;
         if un >= 0.0 && o == [0.0; 3] {
             // Open and separating: r stays 0 (q = u), nothing changes.
@@ -528,7 +621,7 @@ impl Problem {
         let mut state: Vec<BodyState> = velocity
             .iter()
             .zip(angular_velocity.iter())
-            .map(|(v, w)| [v.x, v.y, v.z, 0.0, w.x, w.y, w.z, 0.0])
+            .map(|(v, w)| BodyState([v.x, v.y, v.z, 0.0, w.x, w.y, w.z, 0.0]))
             .collect();
         // In parallel, collected in order.
         let prepared: Vec<Prepared> = rows
