@@ -179,13 +179,19 @@ fn packing_and_vtk_files_read_back() {
 
 #[test]
 fn the_same_seed_gives_the_same_packing_on_one_and_two_threads() {
-    // The quick preset cut to a 0.45 × 0.25 m bed (about a fifth of the stones) that
-    // still has two sleepers, so two subdomains and their interface.
+    // The quick preset cut to a 0.4 × 0.34 m bed (about a fifth of the stones) that
+    // still has two sleepers, so two subdomains and their interface, and a track-bed
+    // profile: a 2 cm shoulder beyond the 0.2 m sleepers, then a 1 : 1.5 slope down
+    // to the walls (0.18 m at the crest, 0.147 m at the walls).
     let small = [
         "--set",
-        "bed.length=\"0.45 m\"",
+        "bed.length=\"0.4 m\"",
         "--set",
-        "bed.width=\"0.25 m\"",
+        "bed.width=\"0.34 m\"",
+        "--set",
+        "bed.shoulder_width=\"0.02 m\"",
+        "--set",
+        "bed.shoulder_slope=1.5",
         "--set",
         "sleepers.spacing=\"0.2 m\"",
         "--set",
@@ -199,7 +205,29 @@ fn the_same_seed_gives_the_same_packing_on_one_and_two_threads() {
     // The synchronous DDM (one slab per sleeper) runs the subdomains in parallel: the
     // packing must not depend on how many threads share them.
     assert!(a == b, "packing.toml differs between 1 and 2 threads");
-    assert!(figures(&two)["grains"].as_f64().unwrap() > 50.0);
+    let f = figures(&two);
+    assert!(f["grains"].as_f64().unwrap() > 50.0);
+    // The profile: crest 0.1 + 0.02 m, top at the crib level 0.12 + 0.06 m.
+    let p = &f["profile"];
+    assert!((p["crest_half_width_m"].as_f64().unwrap() - 0.12).abs() < 1e-12);
+    assert!((p["top_m"].as_f64().unwrap() - 0.18).abs() < 1e-12);
+    // Struck off to it, the stones settle down and out: no centre ends above it by
+    // more than a tenth of d50 (a stone the final settle lifts by rocking).
+    let d50 = f["d50_m"].as_f64().unwrap();
+    let above = p["max_centre_above_m"].as_f64().unwrap();
+    assert!(
+        above < 0.1 * d50,
+        "a stone centre {above} m above the profile"
+    );
+    // And the packing holds stones under the slopes, not only under the crest.
+    let packing = ballast::pack::Packing::read(&two.join("packing.toml")).unwrap();
+    let outer = packing
+        .stones
+        .iter()
+        .filter(|s| s.position[1].abs() > 0.14)
+        .count();
+    assert!(outer > 5, "{outer} stones under the slopes");
+    assert_eq!(f["stones_outside"].as_f64().unwrap(), 0.0);
     let _ = std::fs::remove_dir_all(one);
     let _ = std::fs::remove_dir_all(two);
 }
@@ -442,7 +470,20 @@ fn a_vibrating_floor_compacts_a_plain_box_and_comes_back_to_rest() {
 #[test]
 fn beds_that_cannot_hold_the_stones_are_one_line_errors() {
     let work = tempfile::tempdir().unwrap();
-    let cases: [(&[&str], &str); 2] = [
+    let cases: [(&[&str], &str); 4] = [
+        (
+            &["--set", "bed.shoulder_width=\"0.1 m\""],
+            "key bed.shoulder_width",
+        ),
+        (
+            &[
+                "--set",
+                "bed.shoulder_width=\"0.1 m\"",
+                "--set",
+                "bed.shoulder_slope=-1",
+            ],
+            "key bed.shoulder_slope",
+        ),
         (
             &[
                 "--set",

@@ -39,6 +39,7 @@ use std::time::{Duration, Instant};
 
 use nalgebra::{Isometry3, Point3, Translation3, Unit, Vector3};
 
+use super::profile::Profile;
 use crate::contact::ContactPoint;
 use crate::geometry::random::SplitMix;
 use crate::nscd::body::{Body, BodyShape, Motion, Prescribed};
@@ -144,6 +145,8 @@ pub struct DepositSetup {
     pub seed: u64,
     /// Domain decomposition of the contact solve (`None`: sequential NLGS).
     pub ddm: Option<DdmSetup>,
+    /// Track-bed profile the strike-offs follow (`None`: a flat fill to each level).
+    pub profile: Option<Profile>,
 }
 
 /// How one phase ended.
@@ -485,20 +488,29 @@ impl Deposition {
         placed.len()
     }
 
-    /// Free plan area below which stones can be rained (container minus sleepers, m²).
-    fn free_area(&self) -> f64 {
+    /// Free volume between `bottom` and the fill's cap up to `level` (m³): the
+    /// container's, under the profile if there is one, less the sleepers' footprints
+    /// (which lie on the crest) times the layer.
+    fn free_volume(&self, bottom: f64, level: f64) -> f64 {
+        let (length, width) = (self.setup.length, self.setup.width);
         let sleepers: f64 = self
             .sleeper_footprints()
             .iter()
             .map(|f| (f[1] - f[0]) * (f[3] - f[2]))
             .sum();
-        (self.setup.length * self.setup.width - sleepers).max(0.0)
+        let layer = (level - bottom).max(0.0);
+        match &self.setup.profile {
+            Some(p) => {
+                (length * p.section_area(bottom, level, 0.5 * width) - sleepers * layer).max(0.0)
+            }
+            None => (length * width - sleepers).max(0.0) * layer,
+        }
     }
 
     /// Rains stones to fill the bed up to `level` (m) and lets them settle; then strikes
-    /// off the stones whose centre is above `level` and settles again. `bottom` is the
-    /// level from which the new stones fill (the free volume is the free area times
-    /// `level − bottom`). `low_friction`: the raining friction table while it settles
+    /// off the stones whose centre is above `level` (or above the profile, where that is
+    /// lower) and settles again. `bottom` is the level from which the new stones fill
+    /// (the free volume between `bottom` and that cap). `low_friction`: the raining friction table while it settles
     /// (else the final one).
     pub fn fill(
         &mut self,
@@ -508,7 +520,7 @@ impl Deposition {
         low_friction: bool,
         observe: &mut Observer,
     ) {
-        let volume = self.free_area() * (level - bottom).max(0.0);
+        let volume = self.free_volume(bottom, level);
         let room = self.setup.max_stones.saturating_sub(self.stone_count());
         let wanted =
             ((FILL_FRACTION * volume / self.mean_stone_volume()).ceil() as usize).min(room);
@@ -519,8 +531,11 @@ impl Deposition {
         let (time, steps) = (self.time - start, (self.time - start) / dt);
         let removed = self.strike_off(level);
         if removed > 0 {
-            settled = self.settle_for(&format!("{name} (after strike-off)"), low_friction, observe)
-                && settled;
+            // A profile's slopes are cut for the stones' own friction: at the raining
+            // friction they would slump.
+            let low = low_friction && self.setup.profile.is_none();
+            settled =
+                self.settle_for(&format!("{name} (after strike-off)"), low, observe) && settled;
         }
         self.phases.push(PhaseReport {
             name: name.to_string(),
@@ -532,15 +547,17 @@ impl Deposition {
         });
     }
 
-    /// Removes the stones whose mass centre is above `level`; returns how many. The
-    /// engine restarts cold (the contact memory is keyed by body index).
+    /// Removes the stones whose mass centre is above `level`, or above the profile
+    /// where that is lower; returns how many. The engine restarts cold (the contact
+    /// memory is keyed by body index).
     pub fn strike_off(&mut self, level: f64) -> usize {
         let before = self.bodies.len();
+        let cap = |y: f64| self.setup.profile.map_or(level, |p| p.cap(y, level));
         let keep: Vec<bool> = self
             .bodies
             .iter()
             .zip(&self.roles)
-            .map(|(b, r)| !(matches!(r, Role::Stone(_)) && b.position.z > level))
+            .map(|(b, r)| !(matches!(r, Role::Stone(_)) && b.position.z > cap(b.position.y)))
             .collect();
         let mut k = 0;
         self.bodies.retain(|_| {

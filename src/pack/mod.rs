@@ -7,11 +7,13 @@
 //!   sleepers, crib ballast, floor vibration;
 //! - [`report`]: compactness in control boxes by exact polyhedron clipping,
 //!   coordination number, interpenetration;
+//! - [`profile`]: the track-bed cross-section (crest, shoulders, slopes);
 //! - [`packing`]: the packing file the solvers read;
 //! - [`run`]: `ballast-pack SCENE.toml` (files and summary).
 
 pub mod deposit;
 pub mod packing;
+pub mod profile;
 pub mod report;
 pub mod run;
 pub mod scene;

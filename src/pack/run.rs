@@ -21,6 +21,7 @@ use serde_json::json;
 
 use super::deposit::{bounds, DepositSetup, Deposition, Role, SleeperModel};
 use super::packing::{PackedMesh, Packing, Placement, PACKING_FORMAT};
+use super::profile::Profile;
 use super::report::{
     compactness, control_boxes, coordination_numbers, interpenetration, median, stones_outside,
     Compactness,
@@ -112,6 +113,39 @@ fn sleeper_source(scene: &BedScene, scene_path: &Path) -> Result<Option<SleeperS
     }))
 }
 
+/// The scene's track-bed profile: crest half-width from the sleepers' footprint (known
+/// only once a sleeper mesh is read) plus the shoulder width, top at the crib level.
+fn profile_of(
+    scene: &BedScene,
+    sleeper: Option<&SleeperSource>,
+    crib_top: f64,
+    scene_path: &Path,
+) -> Result<Option<Profile>> {
+    let (Some(width), Some(slope), Some(source)) =
+        (scene.bed.shoulder_width, scene.bed.shoulder_slope, sleeper)
+    else {
+        return Ok(None);
+    };
+    let profile = Profile {
+        crest_half_width: 0.5 * source.model.footprint[1] + width.si(),
+        slope,
+        top: crib_top,
+    };
+    if 2.0 * profile.crest_half_width >= scene.bed.width.si() {
+        return Err(Error::invalid(
+            scene_path,
+            format!(
+                "key bed.shoulder_width: the crest (sleeper length {:.3} m + 2 × shoulder) is \
+                 {:.3} m, not less than bed.width {:.3} m",
+                source.model.footprint[1],
+                2.0 * profile.crest_half_width,
+                scene.bed.width.si()
+            ),
+        ));
+    }
+    Ok(Some(profile))
+}
+
 fn friction_tables(scene: &BedScene) -> (FrictionTable, FrictionTable) {
     let mut table = FrictionTable::uniform(scene.material.len(), 0.0);
     for f in &scene.friction {
@@ -196,6 +230,12 @@ pub fn run(ctx: &RunContext) -> Result<()> {
     let ddm = d
         .ddm
         .setup([0.0, length, -0.5 * width, 0.5 * width], &[], per_sleeper);
+    let depth = scene.bed.depth.si();
+    let crib_top = scene
+        .sleepers
+        .as_ref()
+        .map_or(depth, |s| depth + s.embed.si());
+    let profile = profile_of(&scene, sleeper.as_ref(), crib_top, &ctx.scene_path)?;
     let setup = DepositSetup {
         family,
         stone_density: scene.density(&scene.stones.material),
@@ -223,14 +263,10 @@ pub fn run(ctx: &RunContext) -> Result<()> {
         drag_time: d.drag_time.map(|t| t.si()),
         seed: scene.seed,
         ddm,
+        profile,
     };
     let mut bed = Deposition::new(setup);
     std::fs::create_dir_all(ctx.out_dir.join("frames")).map_err(|e| Error::io(&ctx.out_dir, e))?;
-    let depth = scene.bed.depth.si();
-    let crib_top = scene
-        .sleepers
-        .as_ref()
-        .map_or(depth, |s| depth + s.embed.si());
     println!(
         "ballast-pack: {} — bed {:.3} × {:.3} m, {} stone shapes (largest {:.1} mm across), {} sleepers, \
          seed {}, {threads} threads",
@@ -383,7 +419,7 @@ pub fn run(ctx: &RunContext) -> Result<()> {
     }
     let d50 = median(&diameters);
     let sleeper_boxes = bed.sleeper_boxes();
-    let boxes = control_boxes(
+    let mut boxes = control_boxes(
         bed.setup.length,
         bed.setup.width,
         depth,
@@ -391,6 +427,14 @@ pub fn run(ctx: &RunContext) -> Result<()> {
         crib_top,
         d50,
     );
+    if let Some(p) = &bed.setup.profile {
+        // The whole-bed box stays under the slopes too, one d50 in from them.
+        for (_, b) in boxes.iter_mut().filter(|(name, _)| name == "bed") {
+            let half = p.half_width_at(b.max.z) - d50;
+            b.min.y = b.min.y.max(-half);
+            b.max.y = b.max.y.min(half);
+        }
+    }
     if let Some((name, _)) = boxes.iter().find(|(_, b)| b.volume() <= 0.0) {
         return Err(Error::invalid(
             &ctx.scene_path,
@@ -415,6 +459,21 @@ pub fn run(ctx: &RunContext) -> Result<()> {
         max: Point3::new(bed.setup.length, 0.5 * bed.setup.width, f64::INFINITY),
     };
     let outside = stones_outside(&bed.bodies, &bed.roles, &container);
+    // How far the highest stone centre stands above the profile (≤ 0 after the
+    // strike-off, unless the settle lifted one).
+    let profile_json = bed.setup.profile.map(|p| {
+        let excess = bed
+            .bodies
+            .iter()
+            .zip(&bed.roles)
+            .filter(|(_, r)| matches!(r, Role::Stone(_)))
+            .map(|(b, _)| b.position.z - p.height(b.position.y))
+            .fold(f64::NEG_INFINITY, f64::max);
+        json!({
+            "crest_half_width_m": p.crest_half_width, "slope": p.slope, "top_m": p.top,
+            "toe_m": p.toe(), "max_centre_above_m": excess,
+        })
+    });
     timer.add("measures", clock.elapsed());
 
     // Files.
@@ -480,6 +539,7 @@ pub fn run(ctx: &RunContext) -> Result<()> {
         .figure("coordination_number", coordination)
         .figure("coordination_number_with_boundaries", coordination_walls)
         .figure("stones_outside", outside)
+        .figure("profile", profile_json)
         .figure("bed_top_m", top)
         .figure("floor_offset_m", bed.floor_offset())
         .figure("settled", settled)

@@ -15,6 +15,8 @@
 //! width = "1.2 m"                       # y, across
 //! depth = "0.3 m"                       # ballast under the sleepers' underside
 //! sides = "walls"                       # side condition in y ("walls" only, for now)
+//! shoulder_width = "0.4 m"              # optional track-bed profile (needs sleepers):
+//! shoulder_slope = 1.5                  # flat beyond the sleeper ends, then 1 : slope
 //! wall_material = "steel"
 //!
 //! [sleepers]                            # optional: none for a plain box
@@ -126,6 +128,13 @@ pub struct BedSpec {
     pub sides: String,
     /// Material of the floor and walls.
     pub wall_material: String,
+    /// Track-bed profile: flat crest this far beyond the sleeper ends (at the crib
+    /// ballast's level), then the shoulder slope down to the walls ([`super::profile`]).
+    #[serde(default)]
+    pub shoulder_width: Option<Length>,
+    /// Horizontal run per unit height of the shoulder slope (1.5 for 1 : 1.5).
+    #[serde(default)]
+    pub shoulder_slope: Option<f64>,
 }
 
 fn walls() -> String {
@@ -320,6 +329,28 @@ impl Validate for BedScene {
                 self.bed.sides
             ),
         );
+        if self.bed.shoulder_width.is_some() || self.bed.shoulder_slope.is_some() {
+            v.check(
+                "bed.shoulder_width",
+                self.bed.shoulder_width.is_some() && self.bed.shoulder_slope.is_some(),
+                "give both shoulder_width and shoulder_slope, or neither",
+            );
+            v.check(
+                "bed.shoulder_width",
+                self.sleepers.is_some(),
+                "a shoulder profile needs [sleepers] (its crest is the sleepers' length)",
+            );
+        }
+        if let Some(w) = self.bed.shoulder_width {
+            v.non_negative("bed.shoulder_width", w);
+        }
+        if let Some(slope) = self.bed.shoulder_slope {
+            v.check(
+                "bed.shoulder_slope",
+                slope.is_finite() && slope > 0.0,
+                "must be a positive number (horizontal run per unit height)",
+            );
+        }
         if let Some(s) = &self.sleepers {
             v.check("sleepers.count", s.count > 0, "must be at least 1");
             v.positive("sleepers.spacing", s.spacing);
@@ -348,6 +379,13 @@ impl Validate for BedScene {
                     size[1].si() < self.bed.width.si(),
                     "must be less than bed.width (the sleepers lie across the bed)",
                 );
+                if let Some(w) = self.bed.shoulder_width {
+                    v.check(
+                        "bed.shoulder_width",
+                        size[1].si() + 2.0 * w.si() < self.bed.width.si(),
+                        "sleeper length + 2 × shoulder_width must be less than bed.width",
+                    );
+                }
             }
         }
         let d = &self.deposit;
