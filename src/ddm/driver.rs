@@ -30,6 +30,7 @@
 //! Stopping (a fixed n_DDM, or the error measure) is [`body_nlgs::solve_by`]'s, on the
 //! whole problem, counted in DDM iterations.
 
+use rayon::prelude::*;
 use std::ops::Range;
 use std::sync::atomic::{AtomicBool, AtomicPtr, AtomicUsize, Ordering};
 use std::sync::Mutex;
@@ -144,12 +145,12 @@ impl Block {
     }
 
     /// The block of contacts `range` with its own copy of the velocities: its sweep
-    /// data `prepared` (bodies in the global numbering) and local solvers; its state
-    /// copied from `state`, its impulses from `impulse`; `moving` tells which bodies
-    /// move. `slot` is scratch of one entry per body, all `usize::MAX` on entry and on
-    /// return.
+    /// data `prepared` (bodies in the global numbering, renumbered here in place into
+    /// its own state) and local solvers; its state copied from `state`, its impulses
+    /// from `impulse`; `moving` tells which bodies move. `slot` is scratch of one entry
+    /// per body, all `usize::MAX` on entry and on return.
     fn own(
-        (prepared, locals): (&[Prepared], Vec<LocalCoulomb>),
+        (mut prepared, locals): (Vec<Prepared>, Vec<LocalCoulomb>),
         range: Range<usize>,
         (state, impulse): (&[BodyState], &[[f64; 3]]),
         sweeps: usize,
@@ -157,24 +158,21 @@ impl Block {
         slot: &mut [usize],
     ) -> Self {
         let mut global = Vec::new();
-        let mut relabelled = Vec::with_capacity(prepared.len());
-        for c in prepared {
-            let mut local = [0; 2];
-            for (s, &b) in c.bodies.iter().enumerate() {
-                if slot[b] == usize::MAX {
-                    slot[b] = global.len();
-                    global.push(b);
+        for c in &mut prepared {
+            for b in c.bodies_mut() {
+                if slot[*b] == usize::MAX {
+                    slot[*b] = global.len();
+                    global.push(*b);
                 }
-                local[s] = slot[b];
+                *b = slot[*b];
             }
-            relabelled.push(c.relabelled(local));
         }
         for &b in &global {
             slot[b] = usize::MAX;
         }
         Block {
             own: Some(OwnVelocities {
-                prepared: relabelled,
+                prepared,
                 locals,
                 moves: global.iter().map(|&b| moving[b]).collect(),
                 state: global.iter().map(|&b| state[b]).collect(),
@@ -308,12 +306,13 @@ pub fn solve(
         .map(|(r, &n)| {
             let block = match &split {
                 Some(split) => {
+                    // In parallel, collected in order.
                     let prepared: Vec<Prepared> = rows[r.clone()]
-                        .iter()
+                        .par_iter()
                         .map(|row| Prepared::new(row, &split.inverses()))
                         .collect();
-                    let locals = prepared.iter().map(Prepared::local_solver).collect();
-                    let own = (&prepared[..], locals);
+                    let locals = prepared.par_iter().map(Prepared::local_solver).collect();
+                    let own = (prepared, locals);
                     Block::own(own, r.clone(), (state, impulse), n, &moving, &mut slot)
                 }
                 None => Block::shared(r.clone(), impulse, n),

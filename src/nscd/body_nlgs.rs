@@ -205,12 +205,9 @@ impl Prepared {
         LocalCoulomb::with_inverse(&self.w, self.w_inverse, self.mu)
     }
 
-    /// The same contact on another numbering of the bodies (a subdomain's own state).
-    pub(crate) fn relabelled(&self, bodies: [usize; 2]) -> Self {
-        Prepared {
-            bodies,
-            ..self.clone()
-        }
+    /// Its two bodies (their indices in the state it sweeps).
+    pub(crate) fn bodies_mut(&mut self) -> &mut [usize; 2] {
+        &mut self.bodies
     }
 
     /// The relative velocity (local, gap shift included) from the bodies' states, in
