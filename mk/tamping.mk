@@ -2,7 +2,8 @@
 # preset (on the quick bed) and its chart end the default `make`. `make bench-tamping`
 # (part of `make bench`) runs the seed's Table 3 case in its three versions: hours on
 # 2 cores, and it needs the table3 bed (`make pack-presets`); TAMPING_BENCH_STEPS=N runs
-# the first N of its 2 272 steps, TAMPING_BENCH_PRESET=quick the quick bed instead.
+# the first N of its 2 272 steps, TAMPING_BENCH_PRESET=quick the quick bed instead,
+# TAMPING_BENCH_REPEAT=R every version R times in turn (medians).
 # Included by the main Makefile, which defines PY, RELEASE, RUST_SOURCES, VENV_STAMP and
 # PACK_QUICK (mk/pack.mk).
 
@@ -10,6 +11,7 @@ TAMPING_QUICK := results/tamping-quick/summary.json
 TAMPING_CHART := results/tamping_quick.png
 TAMPING_BENCH_PRESET ?= table3
 TAMPING_BENCH_STEPS ?= 2272
+TAMPING_BENCH_REPEAT ?= 1
 
 .PHONY: tamping bench-tamping
 bench: bench-tamping
@@ -23,5 +25,6 @@ $(TAMPING_CHART): tools/tamping_report.py $(TAMPING_QUICK) | $(VENV_STAMP)
 bench-tamping: results/bed-$(TAMPING_BENCH_PRESET)/summary.json meshes/tine.msh | $(RELEASE)/ballast-nscd $(VENV_STAMP)
 	$(PY) tools/tamping_report.py bench --nscd $(RELEASE)/ballast-nscd \
 	  --preset $(TAMPING_BENCH_PRESET) --steps $(TAMPING_BENCH_STEPS) \
+	  --repeat $(TAMPING_BENCH_REPEAT) \
 	  --out results/bench-tamping-$(TAMPING_BENCH_PRESET) \
 	  | tee results/bench-tamping-$(TAMPING_BENCH_PRESET).md

@@ -3,18 +3,21 @@
   tamping_report.py chart DIR OUT.png
       compactness per control box, tine travel and squeezing forces against time,
       from DIR/tamping.csv and DIR/summary.json, the phases shaded.
-  tamping_report.py bench --nscd BIN --preset P --steps N --out DIR
+  tamping_report.py bench --nscd BIN --preset P --steps N --out DIR [--repeat R]
       runs scenes/tamping.toml --preset P for its first N steps in the three versions
       of the seed's Table 3 (1: no DDM, 1 thread; 2: synchronous DDM, 2 threads;
       3: asynchronous DDM, 2 threads) and prints the wall times in the Table 3 layout
       beside the seed's (923 / 621 / 607 min on 1 / 3 / 3 cores), the speedup and
       efficiency as in its Table 2, and the asynchronous run's compactness against
-      the synchronous one's (issue #7: within 2 %; the seed: 1.7 %).
+      the synchronous one's (issue #7: within 2 %; the seed: 1.7 %). With --repeat R
+      the three versions run R times in turn and every wall time is the median of its
+      R runs (the runs of one version give the same results, bit for bit).
 """
 
 import csv
 import json
 import os
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -84,7 +87,7 @@ def chart(directory, out):
     print("tamping_report: wrote", out)
 
 
-def phase_minutes(summary):
+def phase_times(summary):
     w = summary["wall_time_s"]
     total = summary["figures"]["stepping_s"]
     detect = w.get("detect", 0.0)
@@ -101,7 +104,13 @@ def phase_minutes(summary):
     }
 
 
-def bench(nscd, preset, steps, out):
+def median_times(summaries):
+    """The median over runs of every phase time (s)."""
+    runs = [phase_times(s) for s in summaries]
+    return {k: statistics.median(r[k] for r in runs) for k in runs[0]}
+
+
+def bench(nscd, preset, steps, out, repeat=1):
     os.makedirs(out, exist_ok=True)
     # The preset's step, from the summary of a one-step run (the same for every version).
     with tempfile.TemporaryDirectory() as probe:
@@ -112,18 +121,24 @@ def bench(nscd, preset, steps, out):
         with open(os.path.join(probe, "summary.json")) as f:
             dt = json.load(f)["figures"]["dt_s"]
     results = {}
-    for version, (name, driver, threads) in VERSIONS.items():
-        d = os.path.join(out, "version-%d" % version)
-        cmd = [nscd, "scenes/tamping.toml", "--preset", preset, "--out", d,
-               "--threads", str(threads), "--set", "ddm.driver=\"%s\"" % driver,
-               "--set", "output.frames=2", "--set", "time.duration=%r" % (steps * dt)]
-        print("tamping_report:", " ".join(cmd), file=sys.stderr, flush=True)
-        subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
-        with open(os.path.join(d, "summary.json")) as f:
-            results[version] = json.load(f)
-    ref = phase_minutes(results[1])
-    print("\n## Table 3 layout: %s preset, %d steps (minutes; seed's in brackets)\n"
-          % (preset, steps))
+    runs = {v: [] for v in VERSIONS}
+    # The versions in turn, so that a slow spell of the machine hits them alike.
+    for r in range(repeat):
+        for version, (name, driver, threads) in VERSIONS.items():
+            d = os.path.join(out, "version-%d" % version)
+            cmd = [nscd, "scenes/tamping.toml", "--preset", preset, "--out", d,
+                   "--threads", str(threads), "--set", "ddm.driver=\"%s\"" % driver,
+                   "--set", "output.frames=2", "--set", "time.duration=%r" % (steps * dt)]
+            print("tamping_report: run %d/%d:" % (r + 1, repeat), " ".join(cmd),
+                  file=sys.stderr, flush=True)
+            subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
+            with open(os.path.join(d, "summary.json")) as f:
+                results[version] = json.load(f)
+            runs[version].append(results[version])
+    times = {v: median_times(runs[v]) for v in VERSIONS}
+    ref = times[1]
+    print("\n## Table 3 layout: %s preset, %d steps (minutes, %s; seed's in brackets)\n"
+          % (preset, steps, "one run" if repeat == 1 else "medians of %d runs" % repeat))
     print("| | " + " | ".join("version %d: %s" % (v, VERSIONS[v][0]) for v in VERSIONS) + " |")
     print("|---|" + "---|" * len(VERSIONS))
     rows = [("cores", None), ("total", "total"), ("contact detection", "detect"),
@@ -136,7 +151,7 @@ def bench(nscd, preset, steps, out):
             if key is None:
                 cells.append("%d [%d]" % (VERSIONS[v][2], SEED_TABLE3[v][0]))
                 continue
-            value = phase_minutes(results[v])[key] / 60.0
+            value = times[v][key] / 60.0
             seed = SEED_TABLE3[v][seed_col[key]] if key in seed_col else None
             cells.append("%.2f" % value + (" [%d]" % seed if seed is not None else ""))
         print("| %s | %s |" % (label, " | ".join(cells)))
@@ -144,7 +159,7 @@ def bench(nscd, preset, steps, out):
     print("| version | threads | NLGS speedup | NLGS efficiency | full speedup | full efficiency | seed full speedup |")
     print("|---|---|---|---|---|---|---|")
     for v in (2, 3):
-        p = phase_minutes(results[v])
+        p = times[v]
         threads = VERSIONS[v][2]
         s_solve = ref["solve"] / p["solve"]
         s_full = ref["total"] / p["total"]
@@ -174,7 +189,7 @@ def main(argv):
     if argv and argv[0] == "bench":
         opts = dict(zip(argv[1::2], argv[2::2]))
         bench(opts["--nscd"], opts.get("--preset", "table3"), int(opts.get("--steps", "2272")),
-              opts.get("--out", "results/bench-tamping"))
+              opts.get("--out", "results/bench-tamping"), int(opts.get("--repeat", "1")))
         return 0
     print(__doc__, file=sys.stderr)
     return 2
