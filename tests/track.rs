@@ -40,8 +40,8 @@ fn inputs() -> &'static (PathBuf, PathBuf) {
         ok(
             Command::new(PACK)
                 .arg(root().join("scenes/bed.toml"))
-                // Each deposition phase cut from 2 s to 1 s (the preset's bed is not
-                // settled either; the track run starts from rest overlaps): 15 s less.
+                // Each deposition phase cut from 2 s to 1 s (the preset's raining phases
+                // reach their cap too; the track run starts from rest overlaps).
                 .args([
                     "--preset",
                     "impact-quick",
