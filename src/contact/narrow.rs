@@ -560,14 +560,47 @@ fn halfspace_contacts(
     }
 }
 
-/// The largest separation of `b` from a face plane of `a`, and of `a` from a face plane
-/// of `b`, with the corresponding normals from a to b (a's frame).
+/// The separation of `b` from the plane of face `k` of `a`, and that face's normal
+/// (a's frame, from a to b).
+#[inline(always)]
+fn separation_from_a(
+    pos12: &Isometry3<f64>,
+    a: &ConvexShape,
+    b: &ConvexShape,
+    k: usize,
+) -> (f64, Unit<Vector3<f64>>) {
+    let pa = a.polyhedron();
+    let face = &pa.faces()[k];
+    let n = face.normal;
+    let on_face =
+        pa.points()[pa.vertices_adj_to_face()[face.first_vertex_or_edge as usize] as usize];
+    let support = pos12 * b.local_support_point(&pos12.inverse_transform_vector(&-*n));
+    (n.dot(&(support - on_face)), n)
+}
+
+/// The separation of `a` from the plane of face `k` of `b`, and that face's outward
+/// normal (a's frame, from b to a).
+#[inline(always)]
+fn separation_from_b(
+    pos12: &Isometry3<f64>,
+    a: &ConvexShape,
+    b: &ConvexShape,
+    k: usize,
+) -> (f64, Unit<Vector3<f64>>) {
+    let pb = b.polyhedron();
+    let face = &pb.faces()[k];
+    let n = pos12 * face.normal;
+    let on_face =
+        pos12 * pb.points()[pb.vertices_adj_to_face()[face.first_vertex_or_edge as usize] as usize];
+    let support = a.local_support_point(&-*n);
+    (n.dot(&(support - on_face)), n)
+}
+
 /// The separation along two face normals: the face of `a` whose normal points most
 /// towards `b`'s origin, and the face of `b` whose normal points most towards `a`'s
-/// (each computed exactly as in [`face_separations`]). A lower bound of what that finds.
+/// (the same functions as [`face_separations`], so the same bits). A lower bound of what
+/// that finds.
 fn quick_separation(pos12: &Isometry3<f64>, a: &ConvexShape, b: &ConvexShape) -> f64 {
-    let towards_b = pos12.translation.vector;
-    let towards_a = pos12.inverse_transform_vector(&-towards_b);
     // The index of the face whose normal has the largest component along `d`.
     fn facing(p: &parry3d_f64::shape::ConvexPolyhedron, d: &Vector3<f64>) -> Option<usize> {
         (0..p.faces().len()).max_by(|&x, &y| {
@@ -575,28 +608,17 @@ fn quick_separation(pos12: &Isometry3<f64>, a: &ConvexShape, b: &ConvexShape) ->
             nx.dot(d).total_cmp(&ny.dot(d))
         })
     }
-    let mut best = f64::NEG_INFINITY;
-    let pa = a.polyhedron();
-    if let Some(k) = facing(pa, &towards_b) {
-        let face = &pa.faces()[k];
-        let n = face.normal;
-        let on_face =
-            pa.points()[pa.vertices_adj_to_face()[face.first_vertex_or_edge as usize] as usize];
-        let support = pos12 * b.local_support_point(&pos12.inverse_transform_vector(&-*n));
-        best = best.max(n.dot(&(support - on_face)));
-    }
-    let pb = b.polyhedron();
-    if let Some(k) = facing(pb, &towards_a) {
-        let face = &pb.faces()[k];
-        let n = pos12 * face.normal;
-        let on_face = pos12
-            * pb.points()[pb.vertices_adj_to_face()[face.first_vertex_or_edge as usize] as usize];
-        let support = a.local_support_point(&-*n);
-        best = best.max(n.dot(&(support - on_face)));
-    }
-    best
+    let towards_b = pos12.translation.vector;
+    let towards_a = pos12.inverse_transform_vector(&-towards_b);
+    let from_a = facing(a.polyhedron(), &towards_b).map(|k| separation_from_a(pos12, a, b, k).0);
+    let from_b = facing(b.polyhedron(), &towards_a).map(|k| separation_from_b(pos12, a, b, k).0);
+    from_a
+        .unwrap_or(f64::NEG_INFINITY)
+        .max(from_b.unwrap_or(f64::NEG_INFINITY))
 }
 
+/// The largest separation of `b` from a face plane of `a`, and of `a` from a face plane
+/// of `b`, with the corresponding normals from a to b (a's frame).
 fn face_separations(
     pos12: &Isometry3<f64>,
     a: &ConvexShape,
@@ -608,17 +630,12 @@ fn face_separations(
         on_a: true,
         face: 0,
     };
-    let pa = a.polyhedron();
-    for (k, face) in pa.faces().iter().enumerate() {
-        let n = face.normal;
-        let on_face =
-            pa.points()[pa.vertices_adj_to_face()[face.first_vertex_or_edge as usize] as usize];
-        let support = pos12 * b.local_support_point(&pos12.inverse_transform_vector(&-*n));
-        let separation = n.dot(&(support - on_face));
+    for k in 0..a.polyhedron().faces().len() {
+        let (separation, normal) = separation_from_a(pos12, a, b, k);
         if separation > best.separation {
             best = FaceSeparation {
                 separation,
-                normal: n,
+                normal,
                 on_a: true,
                 face: k,
             };
@@ -630,13 +647,8 @@ fn face_separations(
         on_a: false,
         face: 0,
     };
-    let pb = b.polyhedron();
-    for (k, face) in pb.faces().iter().enumerate() {
-        let n = pos12 * face.normal;
-        let on_face = pos12
-            * pb.points()[pb.vertices_adj_to_face()[face.first_vertex_or_edge as usize] as usize];
-        let support = a.local_support_point(&-*n);
-        let separation = n.dot(&(support - on_face));
+    for k in 0..b.polyhedron().faces().len() {
+        let (separation, n) = separation_from_b(pos12, a, b, k);
         if separation > best_b.separation {
             best_b = FaceSeparation {
                 separation,

@@ -412,7 +412,7 @@ pub fn solve(
                 }
                 stats
             },
-            |impulse, _| {
+            |impulse| {
                 // The blocks' impulses, only when the measure or the caller reads them
                 // (the velocities are current: the synchronous blocks sweep them in
                 // place, the asynchronous driver merges them every iteration).

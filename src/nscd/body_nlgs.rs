@@ -584,7 +584,7 @@ where
         impulse,
         options,
         iteration,
-        |_, _| {},
+        |_| {},
     );
     problem.finish(velocity, angular_velocity);
     report.solve_time = start.elapsed();
@@ -662,8 +662,8 @@ impl Problem {
 /// Iterates on a [`Problem`]'s parts (so that other threads may borrow the contacts
 /// while this one owns the state) until the stopping rule of `options` (see
 /// [`solve`]): `iteration` makes one iteration and returns its statistics; `gather`
-/// makes `impulse` and `state` current, for a driver whose blocks keep their own
-/// impulses and velocities (called before every error measure and once at the end). `impulse` is the warm start given
+/// makes `impulse` current, for a driver whose blocks keep their own impulses (called
+/// before every error measure and once at the end). `impulse` is the warm start given
 /// to [`Problem::new`] and holds the result. The report's `solve_time` is left at zero.
 pub fn run<F, G>(
     contacts: &Sweepable,
@@ -676,7 +676,7 @@ pub fn run<F, G>(
 ) -> NlgsReport
 where
     F: FnMut(&Sweepable, &mut [[f64; 3]], &mut [[f64; 2]], &mut [BodyState]) -> SweepStats,
-    G: FnMut(&mut [[f64; 3]], &mut [BodyState]),
+    G: FnMut(&mut [[f64; 3]]),
 {
     let prepared = &contacts.prepared;
     let rows_len = prepared.len();
@@ -729,7 +729,7 @@ where
                     .error_check
                     .due(report.iterations, stats.change, stats.size, tolerance);
             if full {
-                gather(impulse, state);
+                gather(impulse);
                 report.error = measure(impulse, state);
                 report.error_evaluations += 1;
                 if report.error <= tolerance {
@@ -738,7 +738,7 @@ where
                 }
             }
         }
-        gather(impulse, state);
+        gather(impulse);
         if !report.converged {
             report.error = measure(impulse, state);
             report.error_evaluations += 1;

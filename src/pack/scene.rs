@@ -379,13 +379,6 @@ impl Validate for BedScene {
                     size[1].si() < self.bed.width.si(),
                     "must be less than bed.width (the sleepers lie across the bed)",
                 );
-                if let Some(w) = self.bed.shoulder_width {
-                    v.check(
-                        "bed.shoulder_width",
-                        size[1].si() + 2.0 * w.si() < self.bed.width.si(),
-                        "sleeper length + 2 × shoulder_width must be less than bed.width",
-                    );
-                }
             }
         }
         let d = &self.deposit;
