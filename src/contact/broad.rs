@@ -4,9 +4,12 @@
 //! a pair whose boxes overlap on all three axes is a candidate. Half-spaces have no box:
 //! each is paired with the bounded bodies whose box comes within the alert distance of
 //! its plane. Pairs of two bodies that cannot move are skipped. The result is sorted, so
-//! the contact order (and the NLGS order) does not depend on the sweep.
+//! the contact order (and the NLGS order) does not depend on the sweep. Along a periodic
+//! axis, boxes that cross an end of the cell are swept again as their images.
 
 use nalgebra::{Isometry3, Point3, Unit, Vector3};
+
+use crate::geometry::Period;
 
 /// An axis-aligned box.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -38,47 +41,91 @@ pub fn aabb_of(points: &[Point3<f64>], pose: &Isometry3<f64>) -> Aabb {
     Aabb { min, max }
 }
 
-/// Candidate pairs `(i, j)`, `i < j`, sorted, of bodies within `alert` of each other, or
-/// within `reach[i] + reach[j]` (each body's own reach, e.g. how far it can move in a
-/// step; an empty slice for none), at least one of them `movable`. Each box is
-/// inflated by `max(alert / 2, reach)`, so every pair within `max(alert, reach_i +
-/// reach_j)` is found.
+/// A candidate pair `(i, j, k)`, `i < j`: body i against body j translated by `k`
+/// periods (`k` = 0 without periodicity or within the cell; ±1 across an end).
+pub type Candidate = (u32, u32, i8);
+
+/// Candidate pairs `(i, j, k)` (see [`Candidate`]), sorted, of bodies within `alert` of
+/// each other, or within `reach[i] + reach[j]` (each body's own reach, e.g. how far it
+/// can move in a step; an empty slice for none), at least one of them `movable`. Each
+/// box is inflated by `max(alert / 2, reach)`, so every pair within `max(alert, reach_i
+/// + reach_j)` is found.
+///
+/// With a `period`, a box that crosses an end of the cell also enters the sweep as its
+/// image one length the other way (a ghost), and a ghost pairs with the real boxes it
+/// overlaps: body j's image k periods away touching body i gives `(i, j, k)`, found
+/// once whichever of the two boxes crossed. Half-spaces are not repeated (a plane
+/// across the periodic axis would be a wall, which a periodic side replaces). The cell
+/// must be longer than any two inflated boxes together along its axis, so that a pair
+/// meets through one image at most (a body never meets its own).
 pub fn candidate_pairs(
     shapes: &[BroadShape],
     movable: &[bool],
     alert: f64,
     reach: &[f64],
-) -> Vec<(u32, u32)> {
+    period: Option<&Period>,
+) -> Vec<Candidate> {
     let half = 0.5 * alert;
     let reach_of = |i: usize| reach.get(i).copied().unwrap_or(0.0);
     let inflation = |i: usize| half.max(reach_of(i));
-    let mut bounded: Vec<(u32, Aabb)> = shapes
-        .iter()
-        .enumerate()
-        .filter_map(|(i, s)| match s {
-            BroadShape::Bounded(b) => Some((
-                i as u32,
+    let mut bounded: Vec<(u32, Aabb, i8)> = Vec::with_capacity(shapes.len());
+    for (i, s) in shapes.iter().enumerate() {
+        let BroadShape::Bounded(b) = s else {
+            continue;
+        };
+        let inflated = Aabb {
+            min: b.min - Vector3::repeat(inflation(i)),
+            max: b.max + Vector3::repeat(inflation(i)),
+        };
+        bounded.push((i as u32, inflated, 0));
+        if let Some(p) = period {
+            let (k, length) = (p.axis, p.length);
+            let ghost = |sign: f64| {
+                let mut t = Vector3::zeros();
+                t[k] = sign * length;
                 Aabb {
-                    min: b.min - Vector3::repeat(inflation(i)),
-                    max: b.max + Vector3::repeat(inflation(i)),
-                },
-            )),
-            BroadShape::HalfSpace(..) => None,
-        })
-        .collect();
-    bounded.sort_by(|a, b| a.1.min.x.total_cmp(&b.1.min.x).then(a.0.cmp(&b.0)));
+                    min: inflated.min + t,
+                    max: inflated.max + t,
+                }
+            };
+            if inflated.min[k] < p.low {
+                bounded.push((i as u32, ghost(1.0), 1));
+            }
+            if inflated.max[k] > p.low + length {
+                bounded.push((i as u32, ghost(-1.0), -1));
+            }
+        }
+    }
+    bounded.sort_by(|a, b| {
+        a.1.min
+            .x
+            .total_cmp(&b.1.min.x)
+            .then(a.0.cmp(&b.0))
+            .then(a.2.cmp(&b.2))
+    });
     let mut pairs = Vec::new();
-    for (k, (i, a)) in bounded.iter().enumerate() {
-        for (j, b) in &bounded[k + 1..] {
+    for (k, (i, a, image_i)) in bounded.iter().enumerate() {
+        for (j, b, image_j) in &bounded[k + 1..] {
             if b.min.x > a.max.x {
                 break;
+            }
+            // A ghost meets real boxes only (two ghosts repeat a real pair), and no
+            // body meets itself.
+            if i == j || (*image_i != 0 && *image_j != 0) {
+                continue;
             }
             let overlap = b.min.y <= a.max.y
                 && a.min.y <= b.max.y
                 && b.min.z <= a.max.z
                 && a.min.z <= b.max.z;
             if overlap && (movable[*i as usize] || movable[*j as usize]) {
-                pairs.push(((*i).min(*j), (*i).max(*j)));
+                // j's image relative to i.
+                let image = image_j - image_i;
+                pairs.push(if i < j {
+                    (*i, *j, image)
+                } else {
+                    (*j, *i, -image)
+                });
             }
         }
     }
@@ -86,8 +133,8 @@ pub fn candidate_pairs(
         let BroadShape::HalfSpace(origin, normal) = shape else {
             continue;
         };
-        for (i, b) in &bounded {
-            if !(movable[h] || movable[*i as usize]) {
+        for (i, b, image) in &bounded {
+            if *image != 0 || !(movable[h] || movable[*i as usize]) {
                 continue;
             }
             // The box's lowest point along the normal, relative to the plane.
@@ -100,7 +147,7 @@ pub fn candidate_pairs(
             let gap = normal.dot(&(centre - origin)) - extent + inflation(*i as usize);
             if gap <= alert.max(reach_of(*i as usize) + reach_of(h)) {
                 let h = h as u32;
-                pairs.push((h.min(*i), h.max(*i)));
+                pairs.push((h.min(*i), h.max(*i), 0));
             }
         }
     }
@@ -131,17 +178,57 @@ mod tests {
         ];
         let movable = [true, true, true, true, false];
         assert_eq!(
-            candidate_pairs(&shapes, &movable, 0.1, &[]),
-            vec![(0, 1), (0, 3), (0, 4), (1, 3), (1, 4), (2, 4)]
+            candidate_pairs(&shapes, &movable, 0.1, &[], None),
+            vec![
+                (0, 1, 0),
+                (0, 3, 0),
+                (0, 4, 0),
+                (1, 3, 0),
+                (1, 4, 0),
+                (2, 4, 0)
+            ]
         );
         assert_eq!(
-            candidate_pairs(&shapes, &movable, 0.01, &[]),
-            vec![(0, 3), (0, 4), (1, 4), (2, 4)]
+            candidate_pairs(&shapes, &movable, 0.01, &[], None),
+            vec![(0, 3, 0), (0, 4, 0), (1, 4, 0), (2, 4, 0)]
         );
         // Two fixed bodies never pair.
         assert_eq!(
-            candidate_pairs(&shapes, &[false, false, false, false, false], 0.1, &[]),
+            candidate_pairs(&shapes, &[false, false, false, false, false], 0.1, &[], None),
             vec![]
+        );
+    }
+
+    #[test]
+    fn periodic_images_pair_across_the_ends_once() {
+        // Cell [0, 5) along x: body 0 crosses the low end, body 1 the high end, body 2
+        // sits in the middle; bodies 0 and 1 meet across the ends.
+        let shapes = [
+            cube_at(-0.2, 0.0, 0.0),
+            cube_at(3.75, 0.0, 0.0),
+            cube_at(2.0, 0.0, 0.0),
+            BroadShape::HalfSpace(Point3::origin(), Vector3::z_axis()),
+        ];
+        let movable = [true, true, true, false];
+        let period = Period {
+            axis: 0,
+            low: 0.0,
+            length: 5.0,
+        };
+        // 1's image one period down, at [-1.25, -0.25], is 0.05 from 0's box.
+        assert_eq!(
+            candidate_pairs(&shapes, &movable, 0.1, &[], Some(&period)),
+            vec![(0, 1, -1), (0, 3, 0), (1, 3, 0), (2, 3, 0)]
+        );
+        assert_eq!(
+            candidate_pairs(&shapes, &movable, 0.01, &[], Some(&period)),
+            vec![(0, 3, 0), (1, 3, 0), (2, 3, 0)]
+        );
+        // Along y instead: the same boxes do not cross its ends.
+        let across = Period { axis: 1, ..period };
+        assert_eq!(
+            candidate_pairs(&shapes, &movable, 0.1, &[], Some(&across)),
+            vec![(0, 3, 0), (1, 3, 0), (2, 3, 0)]
         );
     }
 }

@@ -26,7 +26,7 @@ use std::collections::HashMap;
 
 use nalgebra::{Point3, Vector3};
 
-pub use broad::candidate_pairs;
+pub use broad::{candidate_pairs, Candidate};
 pub use frame::local_frame;
 pub use narrow::{detect, Detector};
 pub use shape::{Collider, ConvexShape};
@@ -58,6 +58,10 @@ pub struct ContactPoint {
     pub normal: Vector3<f64>,
     /// The gap along the normal (m): negative when the bodies interpenetrate.
     pub gap: f64,
+    /// The translation of body b's periodic image that this point touches (m; zero
+    /// without periodicity or within the cell): body b's lever arm is taken from
+    /// `position_b + shift_b`.
+    pub shift_b: Vector3<f64>,
 }
 
 /// The impulses of the previous step, by contact identity, in each contact's local

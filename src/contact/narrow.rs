@@ -34,13 +34,14 @@
 //!
 //! Half-space: every hull vertex within the alert distance.
 
-use nalgebra::{Isometry3, Point3, Unit, Vector3};
+use nalgebra::{Isometry3, Point3, Translation3, Unit, Vector3};
 use parry3d_f64::shape::{PackedFeatureId, SupportMap};
 use rayon::prelude::*;
 
 use super::broad::{aabb_of, candidate_pairs, BroadShape};
 use super::shape::{Collider, ConvexShape};
 use super::{ContactKey, ContactPoint};
+use crate::geometry::Period;
 
 /// Candidate pairs per parallel task of the narrow phase (a pair of stones costs a few
 /// µs, so a task is a few hundred µs: large beside rayon's overhead, small beside a
@@ -56,6 +57,9 @@ pub struct Detector {
     /// gives contact points too, so a fast body is seen by its neighbours without
     /// inflating every other pair's alert distance.
     pub reach: Vec<f64>,
+    /// Periodicity along one axis (`None`: none): bodies meet across the cell's ends
+    /// through their images (see [`candidate_pairs`]).
+    pub period: Option<Period>,
     broad: Vec<BroadShape>,
 }
 
@@ -65,13 +69,16 @@ impl Detector {
         Detector {
             alert_distance,
             reach: Vec::new(),
+            period: None,
             broad: Vec::new(),
         }
     }
 
     /// The contact points between `colliders` placed at `poses`; pairs of two bodies
     /// that are not `movable` are skipped. Points are appended to `out` in the order of
-    /// the (sorted) body pairs, then parry's order within a pair.
+    /// the (sorted) body pairs, then parry's order within a pair. A pair across a
+    /// periodic end is detected against the second body's image, and its points say
+    /// which ([`ContactPoint::shift_b`]).
     pub fn detect(
         &mut self,
         colliders: &[&Collider],
@@ -90,21 +97,39 @@ impl Detector {
             });
         }
         let reach = |i: usize| self.reach.get(i).copied().unwrap_or(0.0);
-        let pairs = candidate_pairs(&self.broad, movable, self.alert_distance, &self.reach);
+        let pairs = candidate_pairs(
+            &self.broad,
+            movable,
+            self.alert_distance,
+            &self.reach,
+            self.period.as_ref(),
+        );
+        let period = self.period;
         // The narrow phase in parallel over chunks of the sorted pairs, concatenated in
         // order: the same points in the same order on any number of threads.
         let chunks: Vec<Vec<ContactPoint>> = pairs
             .par_chunks(PAIRS_PER_TASK)
             .map(|chunk| {
                 let mut points = Vec::new();
-                for &(i, j) in chunk {
+                for &(i, j, image) in chunk {
                     let (i, j) = (i as usize, j as usize);
+                    let shift = match (image, &period) {
+                        (0, _) | (_, None) => Vector3::zeros(),
+                        (k, Some(p)) => Vector3::from(p.shift(k)),
+                    };
+                    let pose_j = Translation3::from(shift) * poses[j];
+                    let start = points.len();
                     pair_contacts(
                         (i, colliders[i], &poses[i]),
-                        (j, colliders[j], &poses[j]),
+                        (j, colliders[j], &pose_j),
                         self.alert_distance.max(reach(i) + reach(j)),
                         &mut points,
                     );
+                    // Half-spaces pair at image 0 only, so the shifted body is the
+                    // second of every point found.
+                    for p in &mut points[start..] {
+                        p.shift_b = shift;
+                    }
                 }
                 points
             })
@@ -710,6 +735,7 @@ fn pair_contacts(first: Side, second: Side, alert: f64, out: &mut Vec<ContactPoi
             point,
             normal: a.2.rotation * p.normal,
             gap: p.gap,
+            shift_b: Vector3::zeros(),
         });
     }
 }

@@ -4,38 +4,8 @@
 //! track). The pairs come out sorted by (first, second) whatever the thread count.
 
 use rayon::prelude::*;
-use serde::{Deserialize, Serialize};
 
-/// Periodicity along one axis: the coordinate is taken modulo `length` from `low`.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct Period {
-    /// 0, 1 or 2 for x, y, z.
-    pub axis: usize,
-    /// Lower end of the periodic cell (m).
-    pub low: f64,
-    /// Length of the periodic cell (m).
-    pub length: f64,
-}
-
-impl Period {
-    /// The minimum-image difference b − a.
-    pub fn difference(period: Option<&Period>, a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-        let mut d = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-        if let Some(p) = period {
-            let k = p.axis;
-            // The nearest image, without a libm call: the same bits as d − L·round(d/L)
-            // while |d| < 1.5 L, which unwrapped positions within the cell always give.
-            let half = 0.5 * p.length;
-            while d[k] > half {
-                d[k] -= p.length;
-            }
-            while d[k] < -half {
-                d[k] += p.length;
-            }
-        }
-        d
-    }
-}
+pub use crate::geometry::Period;
 
 /// Below this many spheres the search runs on the calling thread.
 const PARALLEL_MIN: usize = 4096;

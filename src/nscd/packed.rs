@@ -59,14 +59,18 @@ pub fn packed_bodies(
     if let Some(wall) = materials.walls {
         let (lo, hi) = (packing.container_min, packing.container_max);
         let mut planes = vec![("floor", Vector3::z(), Vector3::new(lo[0], lo[1], lo[2]))];
-        if packing.sides == "walls" {
+        // Walls in y always; in x unless the packing is periodic along x (the engine
+        // then needs `Packing::period`).
+        if packing.period().is_none() {
             planes.extend([
                 ("wall_x_min", Vector3::x(), Vector3::new(lo[0], 0.0, 0.0)),
                 ("wall_x_max", -Vector3::x(), Vector3::new(hi[0], 0.0, 0.0)),
-                ("wall_y_min", Vector3::y(), Vector3::new(0.0, lo[1], 0.0)),
-                ("wall_y_max", -Vector3::y(), Vector3::new(0.0, hi[1], 0.0)),
             ]);
         }
+        planes.extend([
+            ("wall_y_min", Vector3::y(), Vector3::new(0.0, lo[1], 0.0)),
+            ("wall_y_max", -Vector3::y(), Vector3::new(0.0, hi[1], 0.0)),
+        ]);
         for (name, normal, point) in planes {
             bodies.push(Body::fixed(
                 name,

@@ -61,6 +61,7 @@ pub fn run_with(ctx: &RunContext, resume: bool) -> Result<()> {
         stone_diameters,
         driven,
         tamping,
+        period,
     } = timer.time("build bodies", || scene.build(&ctx.scene_path))?;
     std::fs::create_dir_all(ctx.out_dir.join("frames")).map_err(|e| Error::io(&ctx.out_dir, e))?;
     let scene_text = toml::to_string(&inputs)
@@ -89,6 +90,7 @@ pub fn run_with(ctx: &RunContext, resume: bool) -> Result<()> {
         gravity: scene.gravity.vector(),
         alert_distance: scene.solver.alert_distance.si(),
         depenetration_speed: scene.solver.depenetration_speed.map_or(0.0, |v| v.si()),
+        period,
     };
     let options = NlgsOptions {
         stopping: match scene.solver.sweeps {
@@ -831,7 +833,8 @@ pub fn contacts_grid(bodies: &[Body], contacts: &[SolvedContact]) -> Result<Grid
         } else {
             c.contact.point.coords
         };
-        let end = bodies[b].position;
+        // Across a periodic end: to the image the contact touches.
+        let end = bodies[b].position + c.contact.shift_b;
         lines.push([points.len(), points.len() + 1]);
         points.push([start.x, start.y, start.z]);
         points.push([end.x, end.y, end.z]);

@@ -88,6 +88,7 @@ use super::body::{Body, BodyShape, Motion, Prescribed, PrincipalShape};
 use super::motion::{mesh_pieces, Pieces, VelocityTable};
 use super::step::FrictionTable;
 use crate::geometry::random::SplitMix;
+use crate::geometry::Period;
 use crate::scene::{
     Acceleration, Angle, DdmSpec, Density, Frequency, Length, Time, Validate, Validator, Velocity,
 };
@@ -990,6 +991,8 @@ pub struct Model {
     pub driven: Vec<DrivenBody>,
     /// The tamping cycle's sleeper, tines, phases and control boxes.
     pub tamping: Option<super::tamping::TampingPlan>,
+    /// Periodicity along the track, from a `"periodic"` packing.
+    pub period: Option<Period>,
 }
 
 /// A `[[box]]` or `[[driven]]` of the scene and the bodies it became.
@@ -1146,6 +1149,7 @@ impl NscdScene {
         }
         let mut stone_diameters = Vec::new();
         let mut tamping = None;
+        let mut period = None;
         if let Some(s) = &self.stones {
             let (placed, diameters) = place_stones(self, s, scene_path)?;
             bodies.extend(placed);
@@ -1154,6 +1158,7 @@ impl NscdScene {
         if let Some(p) = &self.packing {
             let file = Self::resolve(scene_path, &p.file);
             let packing = crate::pack::Packing::read(&file)?;
+            period = packing.period();
             let stuff = |name: &str| super::packed::Stuff {
                 material: self.material_index(name),
                 density: self.density(name),
@@ -1186,6 +1191,7 @@ impl NscdScene {
             stone_diameters,
             driven,
             tamping,
+            period,
         })
     }
 }

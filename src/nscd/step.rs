@@ -36,6 +36,7 @@ use super::body_nlgs::{self, BodyInverses, ContactRow};
 use super::nlgs::{NlgsOptions, NlgsReport};
 use crate::contact::{local_frame, Collider, ContactKey, ContactPoint, Detector, ImpulseMemory};
 use crate::ddm::{self, DdmOptions, Decomposition, Partitioning};
+use crate::geometry::Period;
 
 /// Time-stepping parameters.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -52,6 +53,11 @@ pub struct StepParams {
     /// seed's law) leaves it as it is. A position correction, not mechanics: for
     /// building packings, where an unconverged step's overlap must not stay.
     pub depenetration_speed: f64,
+    /// Periodicity along one axis (`None`: none): contacts across the cell's ends are
+    /// detected between a body and the other's image, and a moving body that leaves
+    /// the cell re-enters it at the other end (seed 004 §4's bed, periodic along the
+    /// track).
+    pub period: Option<Period>,
 }
 
 /// Friction coefficients per pair of materials (symmetric).
@@ -213,6 +219,7 @@ impl MoreauJean {
     pub fn detect(&mut self, bodies: &[Body]) -> Vec<ContactPoint> {
         let mut out = Vec::new();
         self.detector.alert_distance = self.params.alert_distance;
+        self.detector.period = self.params.period;
         self.detector.reach.clear();
         detect_into(&mut self.detector, bodies, &mut out);
         out
@@ -233,6 +240,7 @@ impl MoreauJean {
         // detected within the alert distance or within the sum of its bodies' reaches,
         // twice the distance each body's points can move in h.
         self.detector.alert_distance = self.params.alert_distance;
+        self.detector.period = self.params.period;
         self.detector.reach.clear();
         self.detector.reach.extend(bodies.iter().map(|b| {
             if matches!(b.motion, Motion::Static) {
@@ -317,7 +325,7 @@ impl MoreauJean {
             let frame = local_frame(&c.normal);
             let arms = [
                 c.point.coords - bodies[a].position,
-                c.point.coords - bodies[b].position,
+                c.point.coords - (bodies[b].position + c.shift_b),
             ];
             // Normal relative velocity at the start of the step.
             let point_velocity =
@@ -389,6 +397,9 @@ impl MoreauJean {
                     external_work += body.mass * gravity.dot(&displacement);
                     let w_theta = (1.0 - theta) * body.angular_velocity + theta * w_new;
                     body.position += displacement;
+                    if let Some(p) = &self.params.period {
+                        body.position[p.axis] = p.wrap(body.position[p.axis]);
+                    }
                     body.orientation *= UnitQuaternion::from_scaled_axis(dt * w_theta);
                     body.orientation.renormalize();
                     body.velocity = v_new;
@@ -492,4 +503,87 @@ fn detect_into(detector: &mut Detector, bodies: &[Body], out: &mut Vec<ContactPo
 /// The keys of `contacts` (for tests of persistence).
 pub fn contact_keys(contacts: &[SolvedContact]) -> Vec<ContactKey> {
     contacts.iter().map(|c| c.contact.key).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::nscd::body::BodyShape;
+    use crate::nscd::nlgs::{ErrorCheck, Stopping};
+    use std::sync::Arc;
+
+    /// Two frictional cubes that collide across the end of a periodic cell move exactly
+    /// as the same cubes in free space with the second one a cell length further on:
+    /// the contact is found through the image, and the image's lever arm (which the
+    /// friction's torque depends on) is taken from the image, not the body.
+    #[test]
+    fn a_collision_across_a_periodic_end_is_the_unwrapped_collision() {
+        let run = |period: Option<Period>, second_x: f64| {
+            let params = StepParams {
+                dt: 1e-3,
+                theta: 0.5,
+                gravity: Vector3::zeros(),
+                alert_distance: 5e-3,
+                depenetration_speed: 0.0,
+                period,
+            };
+            let options = NlgsOptions {
+                stopping: Stopping::Tolerance {
+                    tolerance: 1e-13,
+                    max_sweeps: 500,
+                },
+                error_check: ErrorCheck::EverySweep,
+            };
+            let cube = Arc::new(BodyShape::cuboid(Vector3::repeat(0.1)).unwrap());
+            let mut bodies = vec![
+                Body::dynamic(
+                    "a",
+                    cube.clone(),
+                    2000.0,
+                    0,
+                    Isometry3::translation(0.93, 0.0, 0.0),
+                ),
+                Body::dynamic(
+                    "b",
+                    cube,
+                    1000.0,
+                    0,
+                    Isometry3::translation(second_x, 0.02, 0.01),
+                ),
+            ];
+            bodies[0].velocity = Vector3::new(1.0, 0.4, 0.0);
+            let friction = FrictionTable::uniform(1, 0.5);
+            let mut engine = MoreauJean::new(params, options);
+            let mut touched = 0;
+            for k in 0..200 {
+                let report = engine.step(&mut bodies, k as f64 * 1e-3, &friction);
+                touched += usize::from(report.contacts > 0);
+            }
+            (bodies, touched)
+        };
+        let period = Period {
+            axis: 0,
+            low: 0.0,
+            length: 1.0,
+        };
+        let (wrapped, touched) = run(Some(period), 0.04);
+        let (free, _) = run(None, 1.04);
+        assert!(touched > 150, "the cubes touched in {touched} steps");
+        for (w, f) in wrapped.iter().zip(&free) {
+            assert!((0.0..1.0).contains(&w.position.x), "{}", w.position.x);
+            let dx = Period::difference(
+                Some(&period),
+                [w.position.x, 0.0, 0.0],
+                [f.position.x, 0.0, 0.0],
+            );
+            assert!(dx[0].abs() < 1e-9, "{} vs {}", w.position.x, f.position.x);
+            assert!((w.position.yz() - f.position.yz()).norm() < 1e-9);
+            assert!((w.velocity - f.velocity).norm() < 1e-9, "{} {}", w.velocity, f.velocity);
+            let spin = (w.angular_velocity - f.angular_velocity).norm();
+            assert!(spin < 1e-8, "angular velocities differ by {spin}");
+            assert!(w.orientation.angle_to(&f.orientation) < 1e-9);
+        }
+        // The friction turned them (the check above would pass trivially otherwise).
+        assert!(free[1].angular_velocity.norm() > 1e-3, "{}", free[1].angular_velocity);
+    }
 }

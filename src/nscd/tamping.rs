@@ -48,7 +48,7 @@ use super::body::{Body, BodyShape, Motion, Prescribed};
 use super::motion::{mesh_pieces, Pieces, VelocityTable};
 use super::scene::DrivenBody;
 use super::step::SolvedContact;
-use crate::geometry::ControlBox;
+use crate::geometry::{ControlBox, Period};
 use crate::pack::Packing;
 use crate::scene::{Frequency, Length, Time, Validate, Validator, Velocity};
 use crate::{Error, Result};
@@ -228,6 +228,8 @@ pub struct Phase {
 /// phases, and the control boxes in which the compactness is followed.
 #[derive(Debug, Clone)]
 pub struct TampingPlan {
+    /// Periodicity of the packing (compactness counts stones' images across the ends).
+    pub period: Option<Period>,
     /// The tamped sleeper's number (from 1) and body index.
     pub sleeper_number: usize,
     /// Body index of the tamped sleeper.
@@ -506,6 +508,7 @@ pub fn build(
         &sleepers,
         crib_top,
         packing.d50_m,
+        packing.period().is_some(),
     );
     let tamped_box = boxes
         .iter()
@@ -522,6 +525,7 @@ pub fn build(
         ));
     }
     Ok(TampingPlan {
+        period: packing.period(),
         sleeper_number: number,
         sleeper: index,
         tines,
@@ -546,15 +550,20 @@ pub fn build(
 }
 
 /// Σ volume(stone ∩ box) / volume(box) for every box, over the dynamic bodies that are
-/// not sleepers (exact clipping, [`convex_volume_in_box`]).
-pub fn stone_compactness(bodies: &[Body], boxes: &[(String, ControlBox)]) -> Vec<f64> {
+/// not sleepers (exact clipping, [`convex_volume_in_box`]; images across a `period`'s
+/// ends too).
+pub fn stone_compactness(
+    bodies: &[Body],
+    boxes: &[(String, ControlBox)],
+    period: Option<&Period>,
+) -> Vec<f64> {
     let stones: Vec<&Body> = bodies
         .iter()
         .filter(|b| b.is_dynamic() && !b.name.starts_with("sleeper_"))
         .collect();
     boxes
         .iter()
-        .map(|(_, bx)| crate::pack::report::solid_fraction(&stones, bx))
+        .map(|(_, bx)| crate::pack::report::solid_fraction(&stones, bx, period))
         .collect()
 }
 
@@ -616,7 +625,7 @@ pub struct TampingState {
 impl TampingMonitor {
     /// A monitor with the compactness of `bodies` at t = 0.
     pub fn new(plan: TampingPlan, bodies: &[Body]) -> Self {
-        let before = stone_compactness(bodies, &plan.boxes_now(bodies));
+        let before = stone_compactness(bodies, &plan.boxes_now(bodies), plan.period.as_ref());
         let tines = plan.tines.len();
         TampingMonitor {
             plan,
@@ -716,7 +725,11 @@ impl TampingMonitor {
     ) -> Vec<f64> {
         let phase = self.plan.phase_at(time).cloned();
         if sample {
-            self.state.latest = stone_compactness(bodies, &self.plan.boxes_now(bodies));
+            self.state.latest = stone_compactness(
+                bodies,
+                &self.plan.boxes_now(bodies),
+                self.plan.period.as_ref(),
+            );
         }
         let tamped = self.state.latest[self.plan.tamped_box];
         if let Some(p) = &phase {

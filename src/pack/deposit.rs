@@ -113,7 +113,8 @@ pub struct DepositSetup {
     pub stone_density: f64,
     /// Stone material index.
     pub stone_material: u32,
-    /// Container: [0, L] × [−W/2, W/2] × [0, ∞).
+    /// Container: [0, L] × [−W/2, W/2] × [0, ∞); periodic along x over [0, L) when
+    /// `params.period` is set.
     pub length: f64,
     /// Width (y).
     pub width: f64,
@@ -214,17 +215,23 @@ pub struct Deposition {
 }
 
 impl Deposition {
-    /// An empty container (floor and four walls) ready for rain.
+    /// An empty container (floor and four walls, or two with a period along x) ready
+    /// for rain.
     pub fn new(setup: DepositSetup) -> Self {
         let half_space = |n: Vector3<f64>| Arc::new(BodyShape::half_space(Unit::new_normalize(n)));
         let (l, w) = (setup.length, setup.width);
-        let planes = [
-            ("floor", Vector3::z(), Vector3::zeros()),
-            ("wall_x_min", Vector3::x(), Vector3::zeros()),
-            ("wall_x_max", -Vector3::x(), Vector3::new(l, 0.0, 0.0)),
+        let mut planes = vec![("floor", Vector3::z(), Vector3::zeros())];
+        // Periodic along x: no end walls, the bed continues through the cell's ends.
+        if setup.params.period.is_none() {
+            planes.extend([
+                ("wall_x_min", Vector3::x(), Vector3::zeros()),
+                ("wall_x_max", -Vector3::x(), Vector3::new(l, 0.0, 0.0)),
+            ]);
+        }
+        planes.extend([
             ("wall_y_min", Vector3::y(), Vector3::new(0.0, -0.5 * w, 0.0)),
             ("wall_y_max", -Vector3::y(), Vector3::new(0.0, 0.5 * w, 0.0)),
-        ];
+        ]);
         let bodies: Vec<Body> = planes
             .iter()
             .map(|(name, normal, point)| {
@@ -421,15 +428,19 @@ impl Deposition {
     /// z = top or on a sphere already in the column; the lowest of the tries is kept.
     /// No two spheres overlap, so no two inserted stones do, nor a stone and anything
     /// below the column. Returns how many went in (a stone too large for the container,
-    /// or whose tries all fell on sleepers, is skipped).
+    /// or whose tries all fell on sleepers, is skipped). Periodic along x, plan
+    /// positions take the whole length and spheres near an end are also kept as their
+    /// images one length away, so no stone overlaps another's image either.
     fn insert_column(&mut self, wanted: usize) -> usize {
         let (l, w) = (self.setup.length, self.setup.width);
+        let periodic = self.setup.params.period.is_some();
         let base = self.top() + 1e-3;
         let blocked = self.sleeper_footprints();
         let cell = self.cell;
         let key = |x: f64, y: f64| ((x / cell).floor() as i64, (y / cell).floor() as i64);
         let mut grid: HashMap<(i64, i64), Vec<usize>> = HashMap::new();
         let mut placed: Vec<(Vector3<f64>, f64)> = Vec::new();
+        let mut inserted = 0;
         for _ in 0..wanted {
             let family = self.random.below(self.setup.family.len());
             let r = self.setup.family[family].radius();
@@ -439,10 +450,19 @@ impl Deposition {
                 if l < 2.0 * r || w < 2.0 * r || tries == PLACEMENT_TRIES {
                     break;
                 }
-                let x = r + (l - 2.0 * r) * self.random.next_f64();
+                let x = if periodic {
+                    l * self.random.next_f64()
+                } else {
+                    r + (l - 2.0 * r) * self.random.next_f64()
+                };
                 let y = -0.5 * w + r + (w - 2.0 * r) * self.random.next_f64();
                 let on_sleeper = blocked.iter().any(|f| {
-                    let dx = (f[0] - x).max(x - f[1]).max(0.0);
+                    let gap_x = |x: f64| (f[0] - x).max(x - f[1]).max(0.0);
+                    let dx = if periodic {
+                        gap_x(x).min(gap_x(x - l)).min(gap_x(x + l))
+                    } else {
+                        gap_x(x)
+                    };
                     let dy = (f[2] - y).max(y - f[3]).max(0.0);
                     dx * dx + dy * dy < r * r
                 });
@@ -471,10 +491,20 @@ impl Deposition {
             let Some(centre) = best else {
                 continue;
             };
-            grid.entry(key(centre.x, centre.y))
-                .or_default()
-                .push(placed.len());
-            placed.push((centre, r));
+            // The sphere, and its images across the ends that come within a cell of
+            // the bed (the largest sphere reaches 1.01 cells).
+            let images: &[f64] = match (periodic, centre.x) {
+                (true, x) if x < cell => &[0.0, 1.0],
+                (true, x) if x > l - cell => &[0.0, -1.0],
+                _ => &[0.0],
+            };
+            for k in images {
+                let copy = centre + Vector3::new(k * l, 0.0, 0.0);
+                grid.entry(key(copy.x, copy.y))
+                    .or_default()
+                    .push(placed.len());
+                placed.push((copy, r));
+            }
             let rotation = self.random.rotation();
             self.bodies.push(self.setup.family[family].body(
                 self.inserted,
@@ -484,8 +514,9 @@ impl Deposition {
             ));
             self.roles.push(Role::Stone(family));
             self.inserted += 1;
+            inserted += 1;
         }
-        placed.len()
+        inserted
     }
 
     /// Free volume between `bottom` and the fill's cap up to `level` (m³): the

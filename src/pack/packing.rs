@@ -12,7 +12,7 @@
 //! d50_m = 0.0416
 //! container_min = [0.0, -0.6, 0.0]
 //! container_max = [1.8, 0.6, 0.9]
-//! sides = "walls"
+//! sides = "walls"          # or "periodic": periodic along x (the track), walls in y
 //! crib_top_m = 0.3         # the crib ballast's surface (optional)
 //!
 //! [[mesh]]                 # mesh files, relative to the packing file
@@ -36,7 +36,11 @@ use std::path::{Path, PathBuf};
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
 use serde::Deserialize;
 
+use crate::geometry::Period;
 use crate::{Error, Result};
+
+/// The side conditions a packing may have (see [`Packing::sides`]).
+pub const SIDES: [&str; 2] = ["walls", "periodic"];
 
 /// The format tag on the first line.
 pub const PACKING_FORMAT: &str = "ballast-packing 1";
@@ -104,7 +108,8 @@ pub struct Packing {
     pub container_min: [f64; 3],
     /// Upper corner of the container (m).
     pub container_max: [f64; 3],
-    /// Side condition in y.
+    /// Side conditions: `"walls"` (four walls) or `"periodic"` (periodic along x, the
+    /// track direction, over the container's length; walls across y).
     pub sides: String,
     /// Level of the crib ballast's struck-off surface (m); absent in older files.
     #[serde(default)]
@@ -172,6 +177,15 @@ impl Packing {
         crate::output::write_atomic(path, self.to_toml().as_bytes())
     }
 
+    /// The periodicity of a `"periodic"` packing: along x over the container's length.
+    pub fn period(&self) -> Option<Period> {
+        (self.sides == "periodic").then(|| Period {
+            axis: 0,
+            low: self.container_min[0],
+            length: self.container_max[0] - self.container_min[0],
+        })
+    }
+
     /// Reads and checks a packing file; mesh paths come back resolved against the
     /// packing file's directory. Errors are one line naming the file and the key.
     pub fn read(path: &Path) -> Result<Packing> {
@@ -201,6 +215,12 @@ impl Packing {
             return Err(format!(
                 "key format: \"{}\" is not \"{PACKING_FORMAT}\"",
                 self.format
+            ));
+        }
+        if !SIDES.contains(&self.sides.as_str()) {
+            return Err(format!(
+                "key sides: \"{}\" is not one of \"walls\" or \"periodic\"",
+                self.sides
             ));
         }
         for (i, m) in self.meshes.iter().enumerate() {

@@ -2,10 +2,10 @@
 //! coordination number, interpenetration, stones outside the container.
 
 use crate::contact::ContactPoint;
-use crate::geometry::{convex_volume_in_box, ControlBox};
+use crate::geometry::{convex_volume_in_box, ControlBox, Period};
 use crate::nscd::body::Body;
 use crate::nscd::step::SolvedContact;
-use nalgebra::Point3;
+use nalgebra::{Isometry3, Point3, Translation3, Vector3};
 
 use super::deposit::Role;
 
@@ -21,12 +21,15 @@ pub struct Compactness {
 }
 
 /// The control boxes of a bed `[0, length] × [−width/2, width/2]` with its sleepers'
-/// boxes (min and max corners, world): under each sleeper (its footprint, from `margin`
-/// above the floor to its underside, `margin` in from the side walls), in each crib
-/// (between two sleepers, from `margin` to `margin` below `crib_top`: the struck-off
-/// surface is as loose as a wall), and the whole bed below the
-/// lowest underside (or `depth` without sleepers), `margin` in from every wall.
-/// `margin` (one d50) keeps the walls' layering out of the measure.
+/// boxes (min and max corners, world, in order along x): under each sleeper (its
+/// footprint, from `margin` above the floor to its underside, `margin` in from the side
+/// walls), in each crib (between two sleepers, from `margin` to `margin` below
+/// `crib_top`: the struck-off surface is as loose as a wall), and the whole bed below
+/// the lowest underside (or `depth` without sleepers), `margin` in from every wall.
+/// `margin` (one d50) keeps the walls' layering out of the measure. A bed `periodic`
+/// along x has no end walls: the bed box takes the whole length, and the crib across
+/// the ends (last sleeper to the first one's image) is `crib_N_1`, reaching past
+/// `length` (measure it with [`solid_fraction`] and the period).
 pub fn control_boxes(
     length: f64,
     width: f64,
@@ -34,15 +37,17 @@ pub fn control_boxes(
     sleepers: &[(Point3<f64>, Point3<f64>)],
     crib_top: f64,
     margin: f64,
+    periodic: bool,
 ) -> Vec<(String, ControlBox)> {
     let (y_lo, y_hi) = (-0.5 * width + margin, 0.5 * width - margin);
     let mut boxes = Vec::new();
     let underside = sleepers.iter().map(|s| s.0.z).fold(depth, f64::min);
+    let end = if periodic { 0.0 } else { margin };
     boxes.push((
         "bed".to_string(),
         ControlBox {
-            min: Point3::new(margin, y_lo, margin),
-            max: Point3::new(length - margin, y_hi, underside - margin),
+            min: Point3::new(end, y_lo, margin),
+            max: Point3::new(length - end, y_hi, underside - margin),
         },
     ));
     for (k, (lo, hi)) in sleepers.iter().enumerate() {
@@ -54,25 +59,28 @@ pub fn control_boxes(
             },
         ));
     }
+    let crib = |left: &(Point3<f64>, Point3<f64>), right_x: f64| ControlBox {
+        min: Point3::new(left.1.x, left.0.y.max(y_lo), margin),
+        max: Point3::new(right_x, left.1.y.min(y_hi), crib_top - margin),
+    };
     for (k, pair) in sleepers.windows(2).enumerate() {
-        let (left, right) = (&pair[0], &pair[1]);
-        boxes.push((
-            format!("crib_{}_{}", k + 1, k + 2),
-            ControlBox {
-                min: Point3::new(left.1.x, left.0.y.max(y_lo), margin),
-                max: Point3::new(right.0.x, left.1.y.min(y_hi), crib_top - margin),
-            },
-        ));
+        let name = format!("crib_{}_{}", k + 1, k + 2);
+        boxes.push((name, crib(&pair[0], pair[1].0.x)));
+    }
+    if let (true, Some(first), Some(last)) = (periodic, sleepers.first(), sleepers.last()) {
+        let name = format!("crib_{}_1", sleepers.len());
+        boxes.push((name, crib(last, first.0.x + length)));
     }
     boxes
 }
 
 /// The solid fraction of the stones in each box, exactly (each stone's hull clipped by
-/// the box, [`convex_volume_in_box`]).
+/// the box, [`convex_volume_in_box`]; with a `period`, its images too).
 pub fn compactness(
     bodies: &[Body],
     roles: &[Role],
     boxes: &[(String, ControlBox)],
+    period: Option<&Period>,
 ) -> Vec<Compactness> {
     let stones: Vec<&Body> = bodies
         .iter()
@@ -85,19 +93,39 @@ pub fn compactness(
         .map(|(name, bx)| Compactness {
             name: name.clone(),
             bx: *bx,
-            value: solid_fraction(&stones, bx),
+            value: solid_fraction(&stones, bx, period),
         })
         .collect()
 }
 
 /// Σ volume(stone ∩ `bx`) / volume(`bx`) over `stones`, exactly
-/// ([`convex_volume_in_box`]). The stones' shares are computed in parallel and summed
-/// in order, so the value does not depend on the thread count.
-pub fn solid_fraction(stones: &[&Body], bx: &ControlBox) -> f64 {
+/// ([`convex_volume_in_box`]). With a `period`, a stone also counts through its images
+/// one length either way that reach the box: a stone across an end counts in a box at
+/// the other end, and a box may reach past the ends (a crib across them). The stones' shares are computed in
+/// parallel and summed in order, so the value does not depend on the thread count.
+pub fn solid_fraction(stones: &[&Body], bx: &ControlBox, period: Option<&Period>) -> f64 {
     use rayon::prelude::*;
     let shares: Vec<f64> = stones
         .par_iter()
-        .map(|b| convex_volume_in_box(&b.shape.vertices, &b.shape.triangles, &b.pose(), bx))
+        .map(|b| {
+            let pose = b.pose();
+            let share = |pose: &Isometry3<f64>| {
+                convex_volume_in_box(&b.shape.vertices, &b.shape.triangles, pose, bx)
+            };
+            let mut volume = share(&pose);
+            if let Some(p) = period {
+                let (x, r) = (b.position[p.axis], b.shape.bounding_radius());
+                for k in [1, -1] {
+                    // The image's bounding sphere against the box along the axis.
+                    let image = x + f64::from(k) * p.length;
+                    if image + r > bx.min[p.axis] && image - r < bx.max[p.axis] {
+                        let shift = Translation3::from(Vector3::from(p.shift(k)));
+                        volume += share(&(shift * pose));
+                    }
+                }
+            }
+            volume
+        })
         .collect();
     shares.iter().sum::<f64>() / bx.volume()
 }
@@ -185,7 +213,7 @@ mod tests {
             (Point3::new(0.2, -0.5, 0.3), Point3::new(0.45, 0.5, 0.5)),
             (Point3::new(0.8, -0.5, 0.3), Point3::new(1.05, 0.5, 0.5)),
         ];
-        let boxes = control_boxes(1.25, 1.2, 0.3, &sleepers, 0.4, 0.04);
+        let boxes = control_boxes(1.25, 1.2, 0.3, &sleepers, 0.4, 0.04, false);
         let names: Vec<&str> = boxes.iter().map(|(n, _)| n.as_str()).collect();
         assert_eq!(
             names,
@@ -196,5 +224,43 @@ mod tests {
         assert_eq!((crib.min.z, crib.max.z), (0.04, 0.4 - 0.04));
         let under = boxes[1].1;
         assert_eq!((under.min.y, under.max.y, under.max.z), (-0.5, 0.5, 0.3));
+    }
+
+    #[test]
+    fn periodic_solid_fraction_counts_images_in_boxes_past_and_at_the_ends() {
+        use crate::nscd::body::BodyShape;
+        use std::sync::Arc;
+        let cube = Arc::new(BodyShape::cuboid(Vector3::repeat(0.1)).unwrap());
+        let at = |x: f64| {
+            Body::dynamic(
+                "stone",
+                cube.clone(),
+                1.0,
+                0,
+                Isometry3::translation(x, 0.0, 0.0),
+            )
+        };
+        let period = Period {
+            axis: 0,
+            low: 0.0,
+            length: 1.0,
+        };
+        let bx = |x0: f64, x1: f64| ControlBox {
+            min: Point3::new(x0, -0.05, -0.05),
+            max: Point3::new(x1, 0.05, 0.05),
+        };
+        let near_low = at(0.03); // [-0.02, 0.08]; image +1 at [0.98, 1.08]
+        let near_high = at(0.97); // [0.92, 1.02]; image −1 at [-0.08, 0.02]
+        let close = |a: f64, b: f64| (a - b).abs() < 1e-12;
+        // A crib box past the high end holds 0.07 of the first stone's image.
+        let past = solid_fraction(&[&near_low], &bx(0.9, 1.05), Some(&period));
+        assert!(close(past, 0.07 / 0.15), "{past}");
+        assert_eq!(solid_fraction(&[&near_low], &bx(0.9, 1.05), None), 0.0);
+        // A box at the low end: the first stone's own 0.08, the second's image 0.02.
+        let low = solid_fraction(&[&near_low, &near_high], &bx(0.0, 0.1), Some(&period));
+        assert!(close(low, 0.1 / 0.1), "{low}");
+        // Across the whole cell every stone counts exactly once.
+        let whole = solid_fraction(&[&near_low, &near_high], &bx(0.0, 1.0), Some(&period));
+        assert!(close(whole, 0.2 / 1.0), "{whole}");
     }
 }

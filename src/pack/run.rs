@@ -28,7 +28,7 @@ use super::report::{
 };
 use super::scene::BedScene;
 use crate::ddm::Partitioning;
-use crate::geometry::ControlBox;
+use crate::geometry::{ControlBox, Period};
 use crate::nscd::body::{Body, BodyShape};
 use crate::nscd::motion::{mesh_pieces, Pieces};
 use crate::nscd::run::grains_grid;
@@ -146,6 +146,38 @@ fn profile_of(
     Ok(Some(profile))
 }
 
+/// A periodic bed must be long enough that two bodies meet through one image at most
+/// (the condition of [`crate::contact::candidate_pairs`]): a body reaches both ends of
+/// another only if their extents along x, plus the alert distance and how far they
+/// move in a step, add up to the length. Checked with the sleeper's footprint and the
+/// largest stone's bounding diameter, a quarter of that diameter for the alert
+/// distance and the reach (a few mm each at the deposit's time steps), and two stones.
+fn check_period(
+    scene: &BedScene,
+    family: &[StoneShape],
+    sleeper: Option<&SleeperSource>,
+    scene_path: &Path,
+) -> Result<()> {
+    let stone = family
+        .iter()
+        .map(|s| 2.0 * s.radius())
+        .fold(0.0, f64::max);
+    let sleeper_x = sleeper.map_or(0.0, |s| s.model.footprint[0]);
+    let needed = (2.5 * stone).max(sleeper_x + 1.25 * stone);
+    let length = scene.bed.length.si();
+    if length <= needed {
+        return Err(Error::invalid(
+            scene_path,
+            format!(
+                "key bed.length: a periodic bed must be longer than {needed:.3} m (the \
+                 sleeper's {sleeper_x:.3} m along x plus 1.25 × the largest stone, \
+                 {stone:.3} m across, or 2.5 stones), not {length} m"
+            ),
+        ));
+    }
+    Ok(())
+}
+
 fn friction_tables(scene: &BedScene) -> (FrictionTable, FrictionTable) {
     let mut table = FrictionTable::uniform(scene.material.len(), 0.0);
     for f in &scene.friction {
@@ -200,6 +232,14 @@ pub fn run(ctx: &RunContext) -> Result<()> {
         }
     }
     let sleeper = sleeper_source(&scene, &ctx.scene_path)?;
+    let period = scene.periodic().then(|| Period {
+        axis: 0,
+        low: 0.0,
+        length: scene.bed.length.si(),
+    });
+    if period.is_some() {
+        check_period(&scene, &family, sleeper.as_ref(), &ctx.scene_path)?;
+    }
     let (friction, rain_friction) = friction_tables(&scene);
     let d = &scene.deposit;
     let family_d50 = median(&family.iter().map(StoneShape::diameter).collect::<Vec<_>>());
@@ -249,6 +289,7 @@ pub fn run(ctx: &RunContext) -> Result<()> {
             gravity: Vector3::new(0.0, 0.0, -9.81),
             alert_distance: d.alert_distance.si(),
             depenetration_speed: d.depenetration_speed.map_or(0.0, |v| v.si()),
+            period,
         },
         tolerance: d.tolerance,
         max_sweeps: d.max_sweeps,
@@ -426,6 +467,7 @@ pub fn run(ctx: &RunContext) -> Result<()> {
         &sleeper_boxes,
         crib_top,
         d50,
+        bed.setup.params.period.is_some(),
     );
     if let Some(p) = &bed.setup.profile {
         // The whole-bed box stays under the slopes too, one d50 in from them.
@@ -445,7 +487,12 @@ pub fn run(ctx: &RunContext) -> Result<()> {
             ),
         ));
     }
-    let solid = compactness(&bed.bodies, &bed.roles, &boxes);
+    let solid = compactness(
+        &bed.bodies,
+        &bed.roles,
+        &boxes,
+        bed.setup.params.period.as_ref(),
+    );
     let top = bed
         .bodies
         .iter()

@@ -14,7 +14,7 @@
 //! length = "1.8 m"                      # x, along the track
 //! width = "1.2 m"                       # y, across
 //! depth = "0.3 m"                       # ballast under the sleepers' underside
-//! sides = "walls"                       # side condition in y ("walls" only, for now)
+//! sides = "walls"                       # or "periodic": periodic along x, walls in y
 //! shoulder_width = "0.4 m"              # optional track-bed profile (needs sleepers):
 //! shoulder_slope = 1.5                  # flat beyond the sleeper ends, then 1 : slope
 //! wall_material = "steel"
@@ -57,6 +57,7 @@ use std::path::PathBuf;
 
 use serde::Deserialize;
 
+use super::packing::SIDES;
 use crate::nscd::scene::{FrictionSpec, MaterialSpec};
 use crate::scene::{DdmSpec, Frequency, Length, Time, Validate, Validator, Velocity};
 
@@ -123,7 +124,8 @@ pub struct BedSpec {
     pub width: Length,
     /// Ballast under the sleepers' underside, or the whole layer without sleepers (m).
     pub depth: Length,
-    /// Side condition in y: `walls`.
+    /// Side conditions: `walls` (four walls) or `periodic` (periodic along x, the track
+    /// direction, over `length`, as seed 004 §4's bed; walls across y).
     #[serde(default = "walls")]
     pub sides: String,
     /// Material of the floor and walls.
@@ -243,6 +245,11 @@ impl Default for OutputSpec {
 }
 
 impl BedScene {
+    /// Whether the bed is periodic along x (`bed.sides = "periodic"`).
+    pub fn periodic(&self) -> bool {
+        self.bed.sides == "periodic"
+    }
+
     /// Index of material `name` (0 when unknown: validation rejects that).
     pub fn material_index(&self, name: &str) -> u32 {
         self.material
@@ -323,12 +330,23 @@ impl Validate for BedScene {
         v.positive("bed.depth", self.bed.depth);
         v.check(
             "bed.sides",
-            self.bed.sides == "walls",
+            SIDES.contains(&self.bed.sides.as_str()),
             format!(
-                "\"{}\" is not supported: use \"walls\" (periodic sides are not built yet)",
+                "\"{}\" is not one of \"walls\" or \"periodic\" (periodic along x, the track)",
                 self.bed.sides
             ),
         );
+        if let (true, Some(s)) = (self.periodic(), &self.sleepers) {
+            let pitch = s.count as f64 * s.spacing.si();
+            v.check(
+                "bed.length",
+                (pitch - self.bed.length.si()).abs() <= 1e-9 * pitch,
+                format!(
+                    "a periodic bed repeats its sleepers along x: must be sleepers.count × \
+                     sleepers.spacing = {pitch} m"
+                ),
+            );
+        }
         if self.bed.shoulder_width.is_some() || self.bed.shoulder_slope.is_some() {
             v.check(
                 "bed.shoulder_width",

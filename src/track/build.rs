@@ -331,25 +331,25 @@ pub fn build(
         Periodic::X => Some(0),
         Periodic::Y => Some(1),
     };
-    if packing.sides == "walls" || periodic_axis.is_some() {
-        for axis in 0..2 {
-            if Some(axis) == periodic_axis {
-                continue;
-            }
-            let mut n = [0.0; 3];
-            n[axis] = 1.0;
-            set.planes.push(Plane {
-                point: lo,
-                normal: n,
-                material: BASE,
-            });
-            n[axis] = -1.0;
-            set.planes.push(Plane {
-                point: hi,
-                normal: n,
-                material: BASE,
-            });
+    // Walls on the sides that are not periodic (a packing's sides are walls, or
+    // periodic along x; the scene chooses how the track scene treats x).
+    for axis in 0..2 {
+        if Some(axis) == periodic_axis {
+            continue;
         }
+        let mut n = [0.0; 3];
+        n[axis] = 1.0;
+        set.planes.push(Plane {
+            point: lo,
+            normal: n,
+            material: BASE,
+        });
+        n[axis] = -1.0;
+        set.planes.push(Plane {
+            point: hi,
+            normal: n,
+            material: BASE,
+        });
     }
     if let Some(axis) = periodic_axis {
         set.period = Some(Period {
