@@ -180,10 +180,13 @@ fn packing_and_vtk_files_read_back() {
 #[test]
 fn the_same_seed_gives_the_same_packing_on_one_and_two_threads() {
     // The quick preset cut to a 0.4 × 0.34 m bed (about a fifth of the stones) that
-    // still has two sleepers, so two subdomains and their interface, and a track-bed
+    // still has two sleepers, so two subdomains and their interface, a track-bed
     // profile: a 2 cm shoulder beyond the 0.2 m sleepers, then a 1 : 1.5 slope down
-    // to the walls (0.18 m at the crest, 0.147 m at the walls).
+    // to the walls (0.18 m at the crest, 0.147 m at the walls), and periodic along the
+    // track (seed 004's bed): no end walls, two sleeper bays repeating.
     let small = [
+        "--set",
+        "bed.sides=\"periodic\"",
         "--set",
         "bed.length=\"0.4 m\"",
         "--set",
@@ -228,6 +231,44 @@ fn the_same_seed_gives_the_same_packing_on_one_and_two_threads() {
         .count();
     assert!(outer > 5, "{outer} stones under the slopes");
     assert_eq!(f["stones_outside"].as_f64().unwrap(), 0.0);
+    // Periodic: the stones fill the bed through its ends (no wall gap), every centre
+    // is inside the cell, and the crib across the ends is as full as the other one.
+    // Each crib box (0.1 × 0.2 × 0.1 m) holds a dozen stones, so both are only asked
+    // to be in 0.40–0.70 (the quick bed's 0.50–0.66 widened for that); measured
+    // without the images across the ends, the crib across them would hold about half
+    // its stones (≈ 0.3).
+    assert_eq!(packing.sides, "periodic");
+    let at_ends = packing
+        .stones
+        .iter()
+        .filter(|s| s.position[0] < 0.5 * d50 || s.position[0] > 0.4 - 0.5 * d50)
+        .count();
+    assert!(at_ends > 3, "{at_ends} stones across the ends");
+    let crib = |name: &str| {
+        let boxes = f["compactness"].as_array().unwrap();
+        let b = boxes.iter().find(|b| b["box"] == name).expect(name);
+        b["value"].as_f64().unwrap()
+    };
+    let (inner, across) = (crib("crib_1_2"), crib("crib_2_1"));
+    for value in [inner, across] {
+        assert!(
+            (0.40..0.70).contains(&value),
+            "cribs {inner} and {across} (across the ends)"
+        );
+    }
+    // ballast-nscd reads it periodic: floor and two side walls only, and the bed holds
+    // for 10 steps as the walled quick bed does (below the free-fall bound).
+    let work = tempfile::tempdir().unwrap();
+    let scene = packing_scene(work.path(), &two.join("packing.toml"), 10);
+    let out = work.path().join("out");
+    assert_success(&run_nscd(&scene, &out));
+    let n = figures(&out);
+    assert_eq!(figure(&n, "bodies"), 3.0 + 2.0 + figure(&f, "grains"));
+    let drift = figure(&n, "max_drift_m");
+    assert!(
+        drift < 0.5 * 9.81 * 0.02 * 0.02,
+        "max drift in 10 steps {drift} m"
+    );
     let _ = std::fs::remove_dir_all(one);
     let _ = std::fs::remove_dir_all(two);
 }
@@ -385,6 +426,7 @@ fn malformed_packings_give_one_line_errors() {
             "stone_999.msh",
         ),
         (good.replace("seed = 1", "seed = \"one\""), "seed"),
+        (good.replace("\"walls\"", "\"open\""), "sides"),
     ];
     let packing = work.path().join("packing.toml");
     for (text, key) in cases {
@@ -470,7 +512,10 @@ fn a_vibrating_floor_compacts_a_plain_box_and_comes_back_to_rest() {
 #[test]
 fn beds_that_cannot_hold_the_stones_are_one_line_errors() {
     let work = tempfile::tempdir().unwrap();
-    let cases: [(&[&str], &str); 4] = [
+    let cases: [(&[&str], &str); 6] = [
+        // Periodic, the quick bed's 0.7 m is not its two 0.3 m sleeper bays.
+        (&["--set", "bed.sides=\"periodic\""], "key bed.length"),
+        (&["--set", "bed.sides=\"open\""], "key bed.sides"),
         (
             &["--set", "bed.shoulder_width=\"0.1 m\""],
             "key bed.shoulder_width",

@@ -194,7 +194,13 @@ mod tests {
         );
         // Two fixed bodies never pair.
         assert_eq!(
-            candidate_pairs(&shapes, &[false, false, false, false, false], 0.1, &[], None),
+            candidate_pairs(
+                &shapes,
+                &[false, false, false, false, false],
+                0.1,
+                &[],
+                None
+            ),
             vec![]
         );
     }

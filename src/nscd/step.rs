@@ -578,12 +578,21 @@ mod tests {
             );
             assert!(dx[0].abs() < 1e-9, "{} vs {}", w.position.x, f.position.x);
             assert!((w.position.yz() - f.position.yz()).norm() < 1e-9);
-            assert!((w.velocity - f.velocity).norm() < 1e-9, "{} {}", w.velocity, f.velocity);
+            assert!(
+                (w.velocity - f.velocity).norm() < 1e-9,
+                "{} {}",
+                w.velocity,
+                f.velocity
+            );
             let spin = (w.angular_velocity - f.angular_velocity).norm();
             assert!(spin < 1e-8, "angular velocities differ by {spin}");
             assert!(w.orientation.angle_to(&f.orientation) < 1e-9);
         }
         // The friction turned them (the check above would pass trivially otherwise).
-        assert!(free[1].angular_velocity.norm() > 1e-3, "{}", free[1].angular_velocity);
+        assert!(
+            free[1].angular_velocity.norm() > 1e-3,
+            "{}",
+            free[1].angular_velocity
+        );
     }
 }

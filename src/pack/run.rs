@@ -158,10 +158,7 @@ fn check_period(
     sleeper: Option<&SleeperSource>,
     scene_path: &Path,
 ) -> Result<()> {
-    let stone = family
-        .iter()
-        .map(|s| 2.0 * s.radius())
-        .fold(0.0, f64::max);
+    let stone = family.iter().map(|s| 2.0 * s.radius()).fold(0.0, f64::max);
     let sleeper_x = sleeper.map_or(0.0, |s| s.model.footprint[0]);
     let needed = (2.5 * stone).max(sleeper_x + 1.25 * stone);
     let length = scene.bed.length.si();
