@@ -45,7 +45,7 @@ include $(sort $(wildcard mk/*.mk))
 
 .PHONY: all setup build meshes gallery test lint clean distclean readme-figure
 
-all: gallery qdem-quick $(QDEM_CHART) pack-quick tamping track
+all: gallery qdem-quick $(QDEM_CHART) pack-quick tamping track pack-periodic
 
 ## Set-up: Debian packages the build links (mk/system-deps.mk) and a project-local venv
 ## with the pinned Python tools.

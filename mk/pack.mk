@@ -5,14 +5,24 @@
 PACK_QUICK := results/bed-quick/summary.json
 PACK_CHART := results/bed_quick.png
 PACK_PRESETS := table3 tamping7 impact
+PACK_PERIODIC := results/bed-quick-periodic/summary.json
+PACK_PERIODIC_CHART := results/bed_quick_periodic.png
 
-.PHONY: pack-quick pack-presets
+.PHONY: pack-quick pack-periodic pack-presets
 
 pack-quick: $(PACK_CHART)
 $(PACK_QUICK): scenes/bed.toml $(STONE_MESHES) meshes/sleeper_type3.msh $(RUST_SOURCES) | $(RELEASE)/ballast-pack
 	$(RELEASE)/ballast-pack $< --preset quick --out $(@D)
 $(PACK_CHART): tools/pack_report.py $(PACK_QUICK) | $(VENV_STAMP)
 	$(PY) $< chart $(dir $(PACK_QUICK)) $@
+
+## The quick bed periodic along the track (bed.sides = "periodic"): the default `make`
+## ends with it.
+pack-periodic: $(PACK_PERIODIC_CHART)
+$(PACK_PERIODIC): scenes/bed.toml $(STONE_MESHES) $(RUST_SOURCES) | $(RELEASE)/ballast-pack
+	$(RELEASE)/ballast-pack $< --preset quick-periodic --out $(@D)
+$(PACK_PERIODIC_CHART): tools/pack_report.py $(PACK_PERIODIC) | $(VENV_STAMP)
+	$(PY) $< chart $(dir $(PACK_PERIODIC)) $@
 
 ## The seed-sized beds (hours each on 2 cores): `make pack-presets`, not part of tests.
 pack-presets: $(PACK_PRESETS:%=results/bed-%/summary.json) | $(VENV_STAMP)

@@ -57,9 +57,11 @@ def chart(directory, out):
         if last:
             history.axvspan(t[start], t[k], color=colours[int(rows[k]["phase"]) % 2], zorder=0)
             start = k + 1
+    periodic = summary["inputs"]["bed"].get("sides") == "periodic"
     history.set_title(
         f"deposition: {fig['grains']} stones, d50 {1e3 * fig['d50_m']:.1f} mm, "
-        f"{fig['steps']} steps", fontsize=10
+        f"{fig['steps']} steps" + (", periodic along the track" if periodic else ""),
+        fontsize=10,
     )
 
     names = [c["box"] for c in fig["compactness"]]
