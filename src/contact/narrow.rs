@@ -382,7 +382,8 @@ fn edge_contacts(
             if (offset - n * n.dot(&offset)).norm() > alert {
                 continue;
             }
-            if !minkowski && !(interior(&ea.ends, &on_a) && interior(ends, &on_b)) {
+            let crossing = interior(&ea.ends, &on_a) && interior(ends, &on_b);
+            if !(minkowski || crossing) {
                 continue;
             }
             out.push(LocalContact {
