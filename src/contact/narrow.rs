@@ -296,10 +296,8 @@ fn support_vertex(shape: &ConvexShape, dir: &Vector3<f64>) -> (u32, Point3<f64>)
 /// cross (seen along n, their closest points are within `alert` of each other
 /// sideways): the point is at the closest points, the normal is n. Only edges that come
 /// within `alert` of the other body's bounding sphere are tried; near-parallel edges are
-/// skipped (a face normal realises their separation). A pair that is not a Minkowski
-/// face is a contact too when the two edges' interiors cross within `alert` and its
-/// axis faces out of both bodies (see the comment in the loop). Returns the largest
-/// separation over the Minkowski pairs and its axis (−∞ if none).
+/// skipped (a face normal realises their separation). Returns the largest separation
+/// over all the pairs tried and its axis (−∞ if none).
 fn edge_contacts(
     pos12: &Isometry3<f64>,
     a: &ConvexShape,
@@ -342,10 +340,15 @@ fn edge_contacts(
             // Do the arcs (na, nb) and (nc, nd) cross on the unit sphere?
             let cba = nc.dot(&b_x_a);
             let dba = nd.dot(&b_x_a);
+            if cba * dba >= 0.0 {
+                continue;
+            }
             let d_x_c = nd.cross(nc);
             let adc = na.dot(&d_x_c);
             let bdc = nb.dot(&d_x_c);
-            let minkowski = cba * dba < 0.0 && adc * bdc < 0.0 && cba * bdc > 0.0;
+            if adc * bdc >= 0.0 || cba * bdc <= 0.0 {
+                continue;
+            }
             let db = ends[1] - ends[0];
             let axis = da.cross(&db);
             let length = axis.norm();
@@ -357,21 +360,8 @@ fn edge_contacts(
             if n.dot(&(na + nb)) < 0.0 {
                 n = -n;
             }
-            // Not a face of the Minkowski difference: kept only as the crossing of the
-            // two edges' interiors, facing out of both bodies, within the alert
-            // distance. Such a pair is not its bodies' support along n (it does not
-            // enter the separating-axis answer), but edges that cross in plan cannot
-            // pass through each other without the bodies interpenetrating, so the
-            // crossing is a contact. It matters when an edge slides over a corner of the
-            // other body: the next edge of the corner is often a few degrees short of a
-            // Minkowski face, and without this row the edge cut 0.8 mm into it in one
-            // 2 ms step at 1 m/s (and 7–9 mm into a stone of the impact bed under the
-            // heap's weight, never pushed out).
-            if !minkowski && n.dot(&(nc + nd)) < 0.0 {
-                continue;
-            }
             let separation = n.dot(&(ends[0] - ea.ends[0]));
-            if minkowski && separation > best.0 {
+            if separation > best.0 {
                 best = (separation, n);
             }
             if separation > alert {
@@ -380,10 +370,6 @@ fn edge_contacts(
             let (on_a, on_b) = closest_points_of_segments(&ea.ends, ends);
             let offset = on_b - on_a;
             if (offset - n * n.dot(&offset)).norm() > alert {
-                continue;
-            }
-            let crossing = interior(&ea.ends, &on_a) && interior(ends, &on_b);
-            if !(minkowski || crossing) {
                 continue;
             }
             out.push(LocalContact {
@@ -401,14 +387,6 @@ fn edge_contacts(
 /// An edge of the second body in the first's frame: its ends, the negated normals of
 /// its two faces (the Gauss-map arc of −b), its parry id.
 type PlacedEdge = ([Point3<f64>; 2], [Vector3<f64>; 2], u32);
-
-/// Whether `p` (a point of the segment `ends`) lies strictly inside it, away from its
-/// ends by more than a millionth of its length.
-fn interior(ends: &[Point3<f64>; 2], p: &Point3<f64>) -> bool {
-    let d = ends[1] - ends[0];
-    let s = (p - ends[0]).dot(&d) / d.norm_squared();
-    s > 1e-6 && s < 1.0 - 1e-6
-}
 
 /// The distance from `p` to the segment `ends`.
 fn segment_point_distance(ends: &[Point3<f64>; 2], p: &Point3<f64>) -> f64 {
