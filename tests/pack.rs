@@ -258,17 +258,9 @@ fn the_same_seed_gives_the_same_packing_on_one_and_two_threads() {
     }
     // ballast-nscd reads it periodic: floor and two side walls only, and the bed holds
     // for 10 steps as the walled quick bed does (below the free-fall bound).
-    let work = tempfile::tempdir().unwrap();
-    let scene = packing_scene(work.path(), &two.join("packing.toml"), 10);
-    let out = work.path().join("out");
-    assert_success(&run_nscd(&scene, &out));
-    let n = figures(&out);
+    let (_work, _, n) = nscd_on_packing(&two.join("packing.toml"), 10);
     assert_eq!(figure(&n, "bodies"), 3.0 + 2.0 + figure(&f, "grains"));
-    let drift = figure(&n, "max_drift_m");
-    assert!(
-        drift < 0.5 * 9.81 * 0.02 * 0.02,
-        "max drift in 10 steps {drift} m"
-    );
+    assert_holds_ten_steps(&n);
     let _ = std::fs::remove_dir_all(one);
     let _ = std::fs::remove_dir_all(two);
 }
@@ -328,6 +320,28 @@ frames = 0
     scene
 }
 
+/// Runs `ballast-nscd` on `packing` for `steps` steps in a fresh directory and checks
+/// that it succeeded; returns the directory (removed when dropped), the output
+/// directory and its summary's figures.
+fn nscd_on_packing(packing: &Path, steps: usize) -> (tempfile::TempDir, PathBuf, Value) {
+    let work = tempfile::tempdir().unwrap();
+    let scene = packing_scene(work.path(), packing, steps);
+    let out = work.path().join("out");
+    assert_success(&run_nscd(&scene, &out));
+    let n = figures(&out);
+    (work, out, n)
+}
+
+/// A restarted bed holds for 10 steps of 2 ms: no body point moves as far as free fall
+/// would take it in 0.02 s (½ g t² = 1.96 mm).
+fn assert_holds_ten_steps(n: &Value) {
+    let drift = figure(n, "max_drift_m");
+    assert!(
+        drift < 0.5 * 9.81 * 0.02 * 0.02,
+        "max drift in 10 steps {drift} m"
+    );
+}
+
 /// Runs `ballast-nscd SCENE --out OUT`.
 fn run_nscd(scene: &Path, out: &Path) -> std::process::Output {
     Command::new(NSCD)
@@ -351,11 +365,7 @@ fn assert_success(output: &std::process::Output) {
 fn ballast_nscd_builds_the_bed_from_the_packing() {
     let dir = quick();
     let f = figures(dir);
-    let work = tempfile::tempdir().unwrap();
-    let scene = packing_scene(work.path(), &dir.join("packing.toml"), 10);
-    let out = work.path().join("out");
-    assert_success(&run_nscd(&scene, &out));
-    let n = figures(&out);
+    let (_work, out, n) = nscd_on_packing(&dir.join("packing.toml"), 10);
     // Floor + four walls, the sleepers, the stones.
     assert_eq!(figure(&n, "bodies"), 5.0 + 2.0 + figure(&f, "grains"));
     assert_eq!(figure(&n, "d50_m"), figure(&f, "d50_m"));
@@ -390,11 +400,7 @@ fn ballast_nscd_builds_the_bed_from_the_packing() {
     // need far more), so the bed sags a little; but it holds: no body point moves as
     // far as free fall would take it in 0.02 s (½ g t² = 1.96 mm; measured ≈ 1 mm), and
     // the mean overlap stays below 0.1 % of d50.
-    let drift = figure(&n, "max_drift_m");
-    assert!(
-        drift < 0.5 * 9.81 * 0.02 * 0.02,
-        "max drift in 10 steps {drift} m"
-    );
+    assert_holds_ten_steps(&n);
     let mean = figure(&n, "final_mean_interpenetration_over_d50");
     assert!(mean < 1e-3, "mean overlap after 10 steps {mean} d50");
 }
