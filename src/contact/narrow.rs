@@ -113,22 +113,23 @@ impl Detector {
                 let mut points = Vec::new();
                 for &(i, j, image) in chunk {
                     let (i, j) = (i as usize, j as usize);
-                    let shift = match (image, &period) {
-                        (0, _) | (_, None) => Vector3::zeros(),
-                        (k, Some(p)) => Vector3::from(p.shift(k)),
-                    };
-                    let pose_j = Translation3::from(shift) * poses[j];
-                    let start = points.len();
-                    pair_contacts(
-                        (i, colliders[i], &poses[i]),
-                        (j, colliders[j], &pose_j),
-                        self.alert_distance.max(reach(i) + reach(j)),
-                        &mut points,
-                    );
-                    // Half-spaces pair at image 0 only, so the shifted body is the
-                    // second of every point found.
-                    for p in &mut points[start..] {
-                        p.shift_b = shift;
+                    let alert = self.alert_distance.max(reach(i) + reach(j));
+                    let first = (i, colliders[i], &poses[i]);
+                    match (image, &period) {
+                        (0, _) | (_, None) => {
+                            pair_contacts(first, (j, colliders[j], &poses[j]), alert, &mut points)
+                        }
+                        (k, Some(p)) => {
+                            let shift = Vector3::from(p.shift(k));
+                            let pose_j = Translation3::from(shift) * poses[j];
+                            let start = points.len();
+                            pair_contacts(first, (j, colliders[j], &pose_j), alert, &mut points);
+                            // Half-spaces pair at image 0 only, so the shifted body is
+                            // the second of every point found.
+                            for p in &mut points[start..] {
+                                p.shift_b = shift;
+                            }
+                        }
                     }
                 }
                 points

@@ -49,6 +49,42 @@ pub struct PackedBodies {
     pub stone_diameters: Vec<f64>,
 }
 
+/// The floor (a half-space through `floor`, normal +z) and the walls of the box
+/// `x[0]..x[1]` × `y[0]..y[1]` as fixed half-spaces of `material`, named `floor`,
+/// `wall_x_min` …: four walls, or only the two across y when the bed is periodic along
+/// x. ballast-pack's container and a packing's boundaries.
+pub fn container_planes(
+    floor: Vector3<f64>,
+    x: [f64; 2],
+    y: [f64; 2],
+    periodic_x: bool,
+    material: u32,
+) -> Vec<Body> {
+    let mut planes = vec![("floor", Vector3::z(), floor)];
+    if !periodic_x {
+        planes.extend([
+            ("wall_x_min", Vector3::x(), Vector3::new(x[0], 0.0, 0.0)),
+            ("wall_x_max", -Vector3::x(), Vector3::new(x[1], 0.0, 0.0)),
+        ]);
+    }
+    planes.extend([
+        ("wall_y_min", Vector3::y(), Vector3::new(0.0, y[0], 0.0)),
+        ("wall_y_max", -Vector3::y(), Vector3::new(0.0, y[1], 0.0)),
+    ]);
+    planes
+        .into_iter()
+        .map(|(name, normal, point)| {
+            Body::fixed(
+                name,
+                Arc::new(BodyShape::half_space(Unit::new_normalize(normal))),
+                material,
+                Isometry3::translation(point.x, point.y, point.z),
+                Motion::Static,
+            )
+        })
+        .collect()
+}
+
 /// Builds the bodies of `packing` (read from `path`, which errors name).
 pub fn packed_bodies(
     path: &Path,
@@ -58,28 +94,15 @@ pub fn packed_bodies(
     let mut bodies = Vec::new();
     if let Some(wall) = materials.walls {
         let (lo, hi) = (packing.container_min, packing.container_max);
-        let mut planes = vec![("floor", Vector3::z(), Vector3::new(lo[0], lo[1], lo[2]))];
-        // Walls in y always; in x unless the packing is periodic along x (the engine
-        // then needs `Packing::period`).
-        if packing.period().is_none() {
-            planes.extend([
-                ("wall_x_min", Vector3::x(), Vector3::new(lo[0], 0.0, 0.0)),
-                ("wall_x_max", -Vector3::x(), Vector3::new(hi[0], 0.0, 0.0)),
-            ]);
-        }
-        planes.extend([
-            ("wall_y_min", Vector3::y(), Vector3::new(0.0, lo[1], 0.0)),
-            ("wall_y_max", -Vector3::y(), Vector3::new(0.0, hi[1], 0.0)),
-        ]);
-        for (name, normal, point) in planes {
-            bodies.push(Body::fixed(
-                name,
-                Arc::new(BodyShape::half_space(Unit::new_normalize(normal))),
-                wall,
-                Isometry3::translation(point.x, point.y, point.z),
-                Motion::Static,
-            ));
-        }
+        // In x unless the packing is periodic along x (the engine then needs
+        // `Packing::period`).
+        bodies.extend(container_planes(
+            Vector3::new(lo[0], lo[1], lo[2]),
+            [lo[0], hi[0]],
+            [lo[1], hi[1]],
+            packing.period().is_some(),
+            wall,
+        ));
     }
     let mesh_error =
         |i: usize, e: Error| Error::invalid(path, format!("key mesh[{i}].file: {}", one_line(&e)));

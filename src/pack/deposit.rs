@@ -37,13 +37,14 @@ use std::collections::HashMap;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use nalgebra::{Isometry3, Point3, Translation3, Unit, Vector3};
+use nalgebra::{Isometry3, Point3, Translation3, Vector3};
 
 use super::profile::Profile;
 use crate::contact::ContactPoint;
 use crate::geometry::random::SplitMix;
 use crate::nscd::body::{Body, BodyShape, Motion, Prescribed};
 use crate::nscd::nlgs::{ErrorCheck, NlgsOptions, Stopping};
+use crate::nscd::packed::container_planes;
 use crate::nscd::scene::StoneShape;
 use crate::nscd::step::{
     DdmSetup, FrictionTable, MoreauJean, SolvedContact, StepParams, StepReport,
@@ -218,32 +219,15 @@ impl Deposition {
     /// An empty container (floor and four walls, or two with a period along x) ready
     /// for rain.
     pub fn new(setup: DepositSetup) -> Self {
-        let half_space = |n: Vector3<f64>| Arc::new(BodyShape::half_space(Unit::new_normalize(n)));
         let (l, w) = (setup.length, setup.width);
-        let mut planes = vec![("floor", Vector3::z(), Vector3::zeros())];
         // Periodic along x: no end walls, the bed continues through the cell's ends.
-        if setup.params.period.is_none() {
-            planes.extend([
-                ("wall_x_min", Vector3::x(), Vector3::zeros()),
-                ("wall_x_max", -Vector3::x(), Vector3::new(l, 0.0, 0.0)),
-            ]);
-        }
-        planes.extend([
-            ("wall_y_min", Vector3::y(), Vector3::new(0.0, -0.5 * w, 0.0)),
-            ("wall_y_max", -Vector3::y(), Vector3::new(0.0, 0.5 * w, 0.0)),
-        ]);
-        let bodies: Vec<Body> = planes
-            .iter()
-            .map(|(name, normal, point)| {
-                Body::fixed(
-                    name,
-                    half_space(*normal),
-                    setup.wall_material,
-                    Isometry3::translation(point.x, point.y, point.z),
-                    Motion::Static,
-                )
-            })
-            .collect();
+        let bodies = container_planes(
+            Vector3::zeros(),
+            [0.0, l],
+            [-0.5 * w, 0.5 * w],
+            setup.params.period.is_some(),
+            setup.wall_material,
+        );
         let roles = vec![Role::Boundary; bodies.len()];
         let radius = setup
             .family

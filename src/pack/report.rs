@@ -101,8 +101,9 @@ pub fn compactness(
 /// Σ volume(stone ∩ `bx`) / volume(`bx`) over `stones`, exactly
 /// ([`convex_volume_in_box`]). With a `period`, a stone also counts through its images
 /// one length either way that reach the box: a stone across an end counts in a box at
-/// the other end, and a box may reach past the ends (a crib across them). The stones' shares are computed in
-/// parallel and summed in order, so the value does not depend on the thread count.
+/// the other end, and a box may reach past the ends (a crib across them). The stones'
+/// shares are computed in parallel and summed in order, so the value does not depend
+/// on the thread count.
 pub fn solid_fraction(stones: &[&Body], bx: &ControlBox, period: Option<&Period>) -> f64 {
     use rayon::prelude::*;
     let shares: Vec<f64> = stones
