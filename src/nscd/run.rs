@@ -91,6 +91,7 @@ pub fn run_with(ctx: &RunContext, resume: bool) -> Result<()> {
         alert_distance: scene.solver.alert_distance.si(),
         depenetration_speed: scene.solver.depenetration_speed.map_or(0.0, |v| v.si()),
         period,
+        end_checks: scene.solver.end_checks,
     };
     let options = NlgsOptions {
         stopping: match scene.solver.sweeps {

@@ -19,6 +19,7 @@
 //! check_every = 10                  # full error measure every 10 sweeps (default)
 //! alert_distance = "1 mm"
 //! depenetration_speed = "2 mm/s"    # optional: push existing overlaps out (packings)
+//! end_checks = 2                    # optional: re-solve a step whose motion cuts unseen features
 //!
 //! [gravity]
 //! magnitude = "9.81 m/s^2"
@@ -176,6 +177,10 @@ pub struct SolverSpec {
     /// law; see [`super::step::StepParams::depenetration_speed`]).
     #[serde(default)]
     pub depenetration_speed: Option<Velocity>,
+    /// End-of-step checks per step (0, the default: none; see
+    /// [`super::step::StepParams::end_checks`]).
+    #[serde(default)]
+    pub end_checks: usize,
     /// A fixed number of sweeps per step instead of a tolerance.
     #[serde(default)]
     pub sweeps: Option<usize>,

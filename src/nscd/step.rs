@@ -27,9 +27,10 @@
 //! closed contact get `ũ_n = u_n^{i+1} + max(g*/(θh), −v_dep)`, which pushes an
 //! overlap out at most at that speed.
 
+use std::collections::HashSet;
 use std::time::{Duration, Instant};
 
-use nalgebra::{Isometry3, Matrix3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Matrix3, Translation3, UnitQuaternion, Vector3};
 
 use super::body::{Body, Motion};
 use super::body_nlgs::{self, BodyInverses, ContactRow};
@@ -37,6 +38,12 @@ use super::nlgs::{NlgsOptions, NlgsReport};
 use crate::contact::{local_frame, Collider, ContactKey, ContactPoint, Detector, ImpulseMemory};
 use crate::ddm::{self, DdmOptions, Decomposition, Partitioning};
 use crate::geometry::Period;
+
+/// An end-of-step check solves the step again only for a missed overlap deeper than
+/// this fraction of the alert distance (0.1 mm at the deposit's 2 mm): shallower ones
+/// are in the next step's problem and, in packings, pushed out at the depenetration
+/// speed.
+const END_CHECK_DEPTH: f64 = 0.05;
 
 /// Time-stepping parameters.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -58,6 +65,14 @@ pub struct StepParams {
     /// the cell re-enters it at the other end (seed 004 §4's bed, periodic along the
     /// track).
     pub period: Option<Period>,
+    /// End-of-step checks (0: none, the seed's step): after the solve, contacts are
+    /// detected at the poses the solved velocities give; if feature pairs that were not
+    /// in the problem overlap there by more than a twentieth of the alert distance (an
+    /// edge that the step's rotation swings over a corner onto the corner's next edge),
+    /// they are carried back to the start poses and added, and the step is solved
+    /// again, at most this many times. Each check costs a detection, each new solve a
+    /// solve.
+    pub end_checks: usize,
 }
 
 /// Friction coefficients per pair of materials (symmetric).
@@ -119,7 +134,8 @@ pub struct StepReport {
     pub warm_started: usize,
     /// The NLGS run.
     pub nlgs: NlgsReport,
-    /// Largest interpenetration among the contacts at the start of the step (m).
+    /// Largest interpenetration among the contacts detected at the start of the step (m;
+    /// not the contacts an end-of-step check carried back, whose gaps are linearised).
     pub max_interpenetration: f64,
     /// Mean interpenetration over the contacts that carry a normal impulse (m).
     pub mean_interpenetration: f64,
@@ -170,6 +186,8 @@ pub struct MoreauJean {
     inverse_mass: Vec<f64>,
     inverse_inertia: Vec<Matrix3<f64>>,
     solved: Vec<SolvedContact>,
+    /// The keys of the contacts this step's end-of-step checks added.
+    carried: HashSet<ContactKey>,
 }
 
 impl MoreauJean {
@@ -191,6 +209,7 @@ impl MoreauJean {
             inverse_mass: Vec::new(),
             inverse_inertia: Vec::new(),
             solved: Vec::new(),
+            carried: HashSet::new(),
         }
     }
 
@@ -221,7 +240,8 @@ impl MoreauJean {
         self.detector.alert_distance = self.params.alert_distance;
         self.detector.period = self.params.period;
         self.detector.reach.clear();
-        detect_into(&mut self.detector, bodies, &mut out);
+        let poses: Vec<Isometry3<f64>> = bodies.iter().map(Body::pose).collect();
+        detect_into(&mut self.detector, bodies, &poses, &mut out);
         out
     }
 
@@ -256,134 +276,87 @@ impl MoreauJean {
                 2.0 * dt * (speed + fall)
             }
         }));
-        detect_into(&mut self.detector, bodies, &mut self.points);
-        // NLGS order: from the top down along gravity, so that one sweep carries the
-        // weight of a column down to its base (bottom-up, it would take one sweep per
-        // layer); ties in the detection order.
-        if gravity != Vector3::zeros() {
-            let down = gravity.normalize();
-            let height = |c: &ContactPoint| -down.dot(&c.point.coords);
-            self.points
-                .sort_by(|a, b| height(b).total_cmp(&height(a)).then(a.key.cmp(&b.key)));
-        }
-        self.owner.clear();
-        if let Some(setup) = &self.ddm {
-            // Grains to subdomains by mass centre; contacts subdomain by subdomain, then
-            // the interface, each block keeping the order above.
-            let centres: Vec<Vector3<f64>> = bodies.iter().map(|b| b.position).collect();
-            let movable: Vec<bool> = bodies.iter().map(Body::is_dynamic).collect();
-            self.owner = setup.partitioning.assign(&centres, &movable);
-            let pairs: Vec<[usize; 2]> = self
-                .points
-                .iter()
-                .map(|c| [c.key.body_a as usize, c.key.body_b as usize])
-                .collect();
-            let (order, decomposition) =
-                ddm::decompose(&pairs, &self.owner, setup.partitioning.subdomains());
-            self.points = order.iter().map(|&k| self.points[k]).collect();
-            self.decomposition = decomposition;
-        }
+        let poses: Vec<Isometry3<f64>> = bodies.iter().map(Body::pose).collect();
+        detect_into(&mut self.detector, bodies, &poses, &mut self.points);
+        self.order_points(bodies);
         phase_times[0] = clock.elapsed();
 
-        // 2. Build: driven velocities at the end of the step, free velocities, rows.
-        let clock = Instant::now();
-        let n = bodies.len();
-        self.velocity.clear();
-        self.angular.clear();
-        self.inverse_mass.clear();
-        self.inverse_inertia.clear();
-        let mut start_velocity = Vec::with_capacity(n);
-        let mut start_angular = Vec::with_capacity(n);
-        for body in bodies.iter_mut() {
-            start_velocity.push(body.velocity);
-            start_angular.push(body.angular_velocity_world());
-            match &body.motion {
-                Motion::Dynamic => {
-                    let free = body.velocity + dt * gravity;
-                    let w_free = free_rotation(body, dt);
-                    self.velocity.push(free);
-                    self.angular.push(body.orientation * w_free);
-                }
-                Motion::Driven(prescribed) => {
-                    body.velocity = prescribed.velocity_at(time + dt);
-                    self.velocity.push(body.velocity);
-                    self.angular.push(Vector3::zeros());
-                }
-                Motion::Static => {
-                    self.velocity.push(Vector3::zeros());
-                    self.angular.push(Vector3::zeros());
-                }
-            }
-            self.inverse_mass.push(body.inverse_mass());
-            self.inverse_inertia.push(body.inverse_inertia_world());
-        }
-        self.rows.clear();
-        self.impulses.clear();
+        // The velocities at the start of the step (the build sets a driven body's to
+        // its end-of-step velocity).
+        let start_velocity: Vec<Vector3<f64>> = bodies.iter().map(|b| b.velocity).collect();
+        let start_angular: Vec<Vector3<f64>> =
+            bodies.iter().map(Body::angular_velocity_world).collect();
         let mut warm_started = 0;
-        for c in &self.points {
-            let (a, b) = (c.key.body_a as usize, c.key.body_b as usize);
-            let frame = local_frame(&c.normal);
-            let arms = [
-                c.point.coords - bodies[a].position,
-                c.point.coords - (bodies[b].position + c.shift_b),
-            ];
-            // Normal relative velocity at the start of the step.
-            let point_velocity =
-                |k: usize, arm: &Vector3<f64>| start_velocity[k] + start_angular[k].cross(arm);
-            let u_start =
-                frame[0].dot(&(point_velocity(b, &arms[1]) - point_velocity(a, &arms[0])));
-            let predicted = c.gap + dt * (1.0 - theta) * u_start;
-            // Open: may close but not cross. Closed (predicted ≤ 0): u_n ≥ 0, or with a
-            // depenetration speed u_n ≥ min(−g*/(θh), that speed).
-            let shift = (predicted / (theta * dt)).max(-self.params.depenetration_speed);
-            self.rows.push(ContactRow {
-                bodies: [c.key.body_a, c.key.body_b],
-                frame,
-                arms,
-                shift,
-                mu: friction.get(bodies[a].material, bodies[b].material),
-            });
-            if self.memory.contains(&c.key) {
-                warm_started += 1;
-            }
-            self.impulses.push(self.memory.get(&c.key));
-        }
-        phase_times[1] = clock.elapsed();
-
-        // 3. Solve.
-        let clock = Instant::now();
-        let inverses = BodyInverses {
-            inverse_mass: &self.inverse_mass,
-            inverse_inertia: &self.inverse_inertia,
-        };
         let mut solve_split = [Duration::ZERO; 2];
         let mut interface_contacts = 0;
-        let nlgs = match &self.ddm {
-            None => body_nlgs::solve(
-                &self.rows,
-                &inverses,
-                &mut self.velocity,
-                &mut self.angular,
-                &mut self.impulses,
-                &self.options,
-            ),
-            Some(setup) => {
-                let report = ddm::solve(
+        let mut pass = 0;
+        self.carried.clear();
+        let nlgs = loop {
+            // 2. Build: driven velocities at the end of the step, free velocities, rows.
+            let clock = Instant::now();
+            let warm = self.build(bodies, time, friction, &start_velocity, &start_angular);
+            if pass == 0 {
+                warm_started = warm;
+            }
+            phase_times[1] += clock.elapsed();
+
+            // 3. Solve.
+            let clock = Instant::now();
+            let inverses = BodyInverses {
+                inverse_mass: &self.inverse_mass,
+                inverse_inertia: &self.inverse_inertia,
+            };
+            let nlgs = match &self.ddm {
+                None => body_nlgs::solve(
                     &self.rows,
-                    &self.decomposition,
                     &inverses,
                     &mut self.velocity,
                     &mut self.angular,
                     &mut self.impulses,
                     &self.options,
-                    &setup.options,
-                );
-                solve_split = [report.subdomain_time, report.interface_time];
-                interface_contacts = self.decomposition.interface.len();
-                report.nlgs
+                ),
+                Some(setup) => {
+                    let report = ddm::solve(
+                        &self.rows,
+                        &self.decomposition,
+                        &inverses,
+                        &mut self.velocity,
+                        &mut self.angular,
+                        &mut self.impulses,
+                        &self.options,
+                        &setup.options,
+                    );
+                    solve_split[0] += report.subdomain_time;
+                    solve_split[1] += report.interface_time;
+                    interface_contacts = self.decomposition.interface.len();
+                    report.nlgs
+                }
+            };
+            phase_times[2] += clock.elapsed();
+            if pass == self.params.end_checks {
+                break nlgs;
             }
+            pass += 1;
+
+            // An end-of-step check: the overlaps the solved motion makes between
+            // features that are not in the problem.
+            let clock = Instant::now();
+            let missed = self.missed_contacts(bodies, &poses, &start_velocity, &start_angular);
+            phase_times[0] += clock.elapsed();
+            if missed.is_empty() {
+                break nlgs;
+            }
+            // Solved again, warm from this pass's impulses, the new contacts cold.
+            self.memory.store(
+                self.points
+                    .iter()
+                    .zip(&self.impulses)
+                    .map(|(c, r)| (c.key, r)),
+            );
+            self.carried.extend(missed.iter().map(|c| c.key));
+            self.points.extend(missed);
+            self.order_points(bodies);
         };
-        phase_times[2] = clock.elapsed();
 
         // 4. Update positions and rotations; energy bookkeeping.
         let clock = Instant::now();
@@ -431,10 +404,14 @@ impl MoreauJean {
             if matches!(bodies[b].motion, Motion::Driven(_)) {
                 external_work -= world.dot(&bodies[b].velocity);
             }
-            max_pen = max_pen.max(-c.gap);
-            if r[0] > 0.0 {
-                pen_sum += (-c.gap).max(0.0);
-                active += 1;
+            // A contact carried back by an end-of-step check has a linearised gap,
+            // not a distance at the start: the start's overlaps are the detected ones.
+            if !self.carried.contains(&c.key) {
+                max_pen = max_pen.max(-c.gap);
+                if r[0] > 0.0 {
+                    pen_sum += (-c.gap).max(0.0);
+                    active += 1;
+                }
             }
             self.solved.push(solved);
         }
@@ -464,6 +441,200 @@ impl MoreauJean {
             interface_contacts,
         }
     }
+
+    /// Puts the contact points in the NLGS order: from the top down along gravity, so
+    /// that one sweep carries the weight of a column down to its base (bottom-up, it
+    /// would take one sweep per layer), ties by key; with a DDM, then subdomain by
+    /// subdomain and the interface last, each block keeping that order.
+    fn order_points(&mut self, bodies: &[Body]) {
+        let gravity = self.params.gravity;
+        if gravity != Vector3::zeros() {
+            let down = gravity.normalize();
+            let height = |c: &ContactPoint| -down.dot(&c.point.coords);
+            self.points
+                .sort_by(|a, b| height(b).total_cmp(&height(a)).then(a.key.cmp(&b.key)));
+        }
+        self.owner.clear();
+        if let Some(setup) = &self.ddm {
+            // Grains to subdomains by mass centre.
+            let centres: Vec<Vector3<f64>> = bodies.iter().map(|b| b.position).collect();
+            let movable: Vec<bool> = bodies.iter().map(Body::is_dynamic).collect();
+            self.owner = setup.partitioning.assign(&centres, &movable);
+            let pairs: Vec<[usize; 2]> = self
+                .points
+                .iter()
+                .map(|c| [c.key.body_a as usize, c.key.body_b as usize])
+                .collect();
+            let (order, decomposition) =
+                ddm::decompose(&pairs, &self.owner, setup.partitioning.subdomains());
+            self.points = order.iter().map(|&k| self.points[k]).collect();
+            self.decomposition = decomposition;
+        }
+    }
+
+    /// Builds the problem of the step: free velocities (gravity, gyroscopic term), a
+    /// driven body's prescribed end velocity, inverse masses and inertias, and one row
+    /// per contact point (frame, lever arms, gap shift, µ) with its warm start from the
+    /// memory. Returns how many rows were warm-started.
+    fn build(
+        &mut self,
+        bodies: &mut [Body],
+        time: f64,
+        friction: &FrictionTable,
+        start_velocity: &[Vector3<f64>],
+        start_angular: &[Vector3<f64>],
+    ) -> usize {
+        let StepParams {
+            dt, theta, gravity, ..
+        } = self.params;
+        self.velocity.clear();
+        self.angular.clear();
+        self.inverse_mass.clear();
+        self.inverse_inertia.clear();
+        for body in bodies.iter_mut() {
+            match &body.motion {
+                Motion::Dynamic => {
+                    let free = body.velocity + dt * gravity;
+                    let w_free = free_rotation(body, dt);
+                    self.velocity.push(free);
+                    self.angular.push(body.orientation * w_free);
+                }
+                Motion::Driven(prescribed) => {
+                    body.velocity = prescribed.velocity_at(time + dt);
+                    self.velocity.push(body.velocity);
+                    self.angular.push(Vector3::zeros());
+                }
+                Motion::Static => {
+                    self.velocity.push(Vector3::zeros());
+                    self.angular.push(Vector3::zeros());
+                }
+            }
+            self.inverse_mass.push(body.inverse_mass());
+            self.inverse_inertia.push(body.inverse_inertia_world());
+        }
+        self.rows.clear();
+        self.impulses.clear();
+        let mut warm_started = 0;
+        for c in &self.points {
+            let (a, b) = (c.key.body_a as usize, c.key.body_b as usize);
+            let frame = local_frame(&c.normal);
+            let arms = [
+                c.point.coords - bodies[a].position,
+                c.point.coords - (bodies[b].position + c.shift_b),
+            ];
+            // Normal relative velocity at the start of the step.
+            let point_velocity =
+                |k: usize, arm: &Vector3<f64>| start_velocity[k] + start_angular[k].cross(arm);
+            let u_start =
+                frame[0].dot(&(point_velocity(b, &arms[1]) - point_velocity(a, &arms[0])));
+            let predicted = c.gap + dt * (1.0 - theta) * u_start;
+            // Open: may close but not cross. Closed (predicted ≤ 0): u_n ≥ 0, or with a
+            // depenetration speed u_n ≥ min(−g*/(θh), that speed). A contact carried
+            // back by an end-of-step check is not capped: its overlap is the step's own
+            // (features swung through each other), so the step must end without it.
+            let shift = if self.carried.contains(&c.key) {
+                predicted / (theta * dt)
+            } else {
+                (predicted / (theta * dt)).max(-self.params.depenetration_speed)
+            };
+            self.rows.push(ContactRow {
+                bodies: [c.key.body_a, c.key.body_b],
+                frame,
+                arms,
+                shift,
+                mu: friction.get(bodies[a].material, bodies[b].material),
+            });
+            if self.memory.contains(&c.key) {
+                warm_started += 1;
+            }
+            self.impulses.push(self.memory.get(&c.key));
+        }
+        warm_started
+    }
+
+    /// The end-of-step check ([`StepParams::end_checks`]): detects at the poses the
+    /// solved velocities give (θ-method, as the update) and returns the points that
+    /// overlap there between features not in the problem, carried back to the start
+    /// `poses` (the two points stay fixed on their bodies, the normal turns with body
+    /// a), with the gap that the step's solved motion turns into the overlap found (so
+    /// the law, linearised about that motion, keeps the features from crossing). Only
+    /// pairs with a moving body are detected, and only overlaps count (no alert
+    /// distance, no reach).
+    fn missed_contacts(
+        &mut self,
+        bodies: &[Body],
+        poses: &[Isometry3<f64>],
+        start_velocity: &[Vector3<f64>],
+        start_angular: &[Vector3<f64>],
+    ) -> Vec<ContactPoint> {
+        let StepParams { dt, theta, .. } = self.params;
+        let ends: Vec<Isometry3<f64>> = bodies
+            .iter()
+            .enumerate()
+            .map(|(k, body)| {
+                let v = (1.0 - theta) * start_velocity[k] + theta * self.velocity[k];
+                let w = (1.0 - theta) * start_angular[k] + theta * self.angular[k];
+                match body.motion {
+                    Motion::Static => poses[k],
+                    _ => Isometry3::from_parts(
+                        Translation3::from(body.position + dt * v),
+                        UnitQuaternion::from_scaled_axis(dt * w) * body.orientation,
+                    ),
+                }
+            })
+            .collect();
+        let (alert, reach) = (
+            self.detector.alert_distance,
+            std::mem::take(&mut self.detector.reach),
+        );
+        self.detector.alert_distance = 0.0;
+        let mut found = Vec::new();
+        detect_into(&mut self.detector, bodies, &ends, &mut found);
+        self.detector.alert_distance = alert;
+        self.detector.reach = reach;
+        let known: HashSet<ContactKey> = self.points.iter().map(|c| c.key).collect();
+        found.retain(|c| c.gap < 0.0 && !known.contains(&c.key));
+        // Shallow cuts are left to the next step (and the depenetration speed): a
+        // second solve of the whole problem is for the deep ones.
+        let depth = END_CHECK_DEPTH * alert;
+        if found.iter().all(|c| c.gap > -depth) {
+            return Vec::new();
+        }
+        found
+            .into_iter()
+            .map(|c| {
+                let (a, b) = (c.key.body_a as usize, c.key.body_b as usize);
+                let image = Translation3::from(c.shift_b);
+                // End-of-step points on a and b, then the same material points at the
+                // start.
+                let on_a = c.point - 0.5 * c.gap * c.normal;
+                let on_b = c.point + 0.5 * c.gap * c.normal;
+                let on_a = poses[a] * (ends[a].inverse() * on_a);
+                let on_b = image * (poses[b] * (ends[b].inverse() * (image.inverse() * on_b)));
+                let normal = poses[a].rotation * (ends[a].rotation.inverse() * c.normal);
+                let point = nalgebra::center(&on_a, &on_b);
+                // The gap that, with this step's normal velocities, gives the overlap
+                // found at the end: the law then acts on the change of the motion,
+                // linearised where the solve left it (the start distance along the
+                // normal is no gap when the features do not face each other there).
+                let arms = [
+                    point.coords - bodies[a].position,
+                    point.coords - (bodies[b].position + c.shift_b),
+                ];
+                let normal_velocity = |v: &[Vector3<f64>], w: &[Vector3<f64>]| {
+                    normal.dot(&(v[b] + w[b].cross(&arms[1]) - v[a] - w[a].cross(&arms[0])))
+                };
+                let u_start = normal_velocity(start_velocity, start_angular);
+                let u_end = normal_velocity(&self.velocity, &self.angular);
+                ContactPoint {
+                    point,
+                    normal,
+                    gap: c.gap - dt * ((1.0 - theta) * u_start + theta * u_end),
+                    ..c
+                }
+            })
+            .collect()
+    }
 }
 
 /// The free angular velocity (body frame) after `dt` without torques: explicit
@@ -490,14 +661,18 @@ fn free_rotation(body: &Body, dt: f64) -> Vector3<f64> {
     next
 }
 
-/// Detection over `bodies` into `out`.
-fn detect_into(detector: &mut Detector, bodies: &[Body], out: &mut Vec<ContactPoint>) {
+/// Detection over `bodies` placed at `poses` into `out`.
+fn detect_into(
+    detector: &mut Detector,
+    bodies: &[Body],
+    poses: &[Isometry3<f64>],
+    out: &mut Vec<ContactPoint>,
+) {
     let colliders: Vec<&Collider> = bodies.iter().map(|b| &b.shape.collider).collect();
-    let poses: Vec<Isometry3<f64>> = bodies.iter().map(Body::pose).collect();
     // Pairs without a moving grain (driven against fixed, two pieces of one tool) carry
     // no impulse that could change anything: skipped.
     let movable: Vec<bool> = bodies.iter().map(Body::is_dynamic).collect();
-    detector.detect(&colliders, &poses, &movable, out);
+    detector.detect(&colliders, poses, &movable, out);
 }
 
 /// The keys of `contacts` (for tests of persistence).
@@ -526,6 +701,7 @@ mod tests {
                 alert_distance: 5e-3,
                 depenetration_speed: 0.0,
                 period,
+                end_checks: 0,
             };
             let options = NlgsOptions {
                 stopping: Stopping::Tolerance {

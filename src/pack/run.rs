@@ -287,6 +287,7 @@ pub fn run(ctx: &RunContext) -> Result<()> {
             alert_distance: d.alert_distance.si(),
             depenetration_speed: d.depenetration_speed.map_or(0.0, |v| v.si()),
             period,
+            end_checks: d.end_checks,
         },
         tolerance: d.tolerance,
         max_sweeps: d.max_sweeps,

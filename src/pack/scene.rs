@@ -34,6 +34,7 @@
 //! max_sweeps = 300
 //! alert_distance = "2 mm"
 //! depenetration_speed = "2 mm/s"        # overlaps of unconverged steps pushed out
+//! end_checks = 2                        # re-solve a step whose motion cuts unseen features
 //! friction = 0.3                        # µ between stones while raining (then the table's)
 //! settle_speed = "5 mm/s"               # rms speed below which the bed has settled
 //! max_overlap = "20 µm"                 # final phases also need overlaps below this
@@ -189,6 +190,10 @@ pub struct DepositSpec {
     /// a deep heap leave some; see `StepParams::depenetration_speed`).
     #[serde(default)]
     pub depenetration_speed: Option<Velocity>,
+    /// End-of-step checks per step (0, the default: none; see
+    /// `StepParams::end_checks`).
+    #[serde(default)]
+    pub end_checks: usize,
     /// µ between stones while raining (the friction table applies afterwards).
     #[serde(default)]
     pub friction: Option<f64>,
