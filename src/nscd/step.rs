@@ -247,9 +247,7 @@ impl MoreauJean {
 
     /// Advances `bodies` from `time` to `time + dt`.
     pub fn step(&mut self, bodies: &mut [Body], time: f64, friction: &FrictionTable) -> StepReport {
-        let StepParams {
-            dt, theta, gravity, ..
-        } = self.params;
+        let StepParams { dt, gravity, .. } = self.params;
         let mut phase_times = [Duration::ZERO; 4];
         let kinetic_before: f64 = bodies.iter().map(Body::kinetic_energy).sum();
 
@@ -364,24 +362,20 @@ impl MoreauJean {
         for (k, body) in bodies.iter_mut().enumerate() {
             match body.motion {
                 Motion::Dynamic => {
-                    let v_new = self.velocity[k];
                     let w_new = body.orientation.inverse() * self.angular[k];
-                    let displacement = dt * ((1.0 - theta) * body.velocity + theta * v_new);
+                    let (displacement, orientation) = self.theta_motion(k, body, &start_velocity);
                     external_work += body.mass * gravity.dot(&displacement);
-                    let w_theta = (1.0 - theta) * body.angular_velocity + theta * w_new;
                     body.position += displacement;
                     if let Some(p) = &self.params.period {
                         body.position[p.axis] = p.wrap(body.position[p.axis]);
                     }
-                    body.orientation *= UnitQuaternion::from_scaled_axis(dt * w_theta);
+                    body.orientation = orientation;
                     body.orientation.renormalize();
-                    body.velocity = v_new;
+                    body.velocity = self.velocity[k];
                     body.angular_velocity = w_new;
                 }
                 Motion::Driven(_) => {
-                    let displacement =
-                        dt * ((1.0 - theta) * start_velocity[k] + theta * body.velocity);
-                    body.position += displacement;
+                    body.position += self.theta_motion(k, body, &start_velocity).0;
                 }
                 Motion::Static => {}
             }
@@ -439,6 +433,35 @@ impl MoreauJean {
             phase_times,
             solve_split,
             interface_contacts,
+        }
+    }
+
+    /// Body `k`'s displacement over the step and its orientation at the end, with the
+    /// solved velocities (θ-method: `h((1 − θ) v_i + θ v_{i+1})`, `q exp(h ω_θ)` with ω_θ
+    /// the θ-average in the body frame): what the update applies, and where an
+    /// end-of-step check detects. Before the update (the body still holds its start
+    /// state; `start_velocity` for a driven body, whose velocity the build set).
+    fn theta_motion(
+        &self,
+        k: usize,
+        body: &Body,
+        start_velocity: &[Vector3<f64>],
+    ) -> (Vector3<f64>, UnitQuaternion<f64>) {
+        let StepParams { dt, theta, .. } = self.params;
+        match body.motion {
+            Motion::Dynamic => {
+                let w_new = body.orientation.inverse() * self.angular[k];
+                let w_theta = (1.0 - theta) * body.angular_velocity + theta * w_new;
+                (
+                    dt * ((1.0 - theta) * start_velocity[k] + theta * self.velocity[k]),
+                    body.orientation * UnitQuaternion::from_scaled_axis(dt * w_theta),
+                )
+            }
+            Motion::Driven(_) => (
+                dt * ((1.0 - theta) * start_velocity[k] + theta * body.velocity),
+                body.orientation,
+            ),
+            Motion::Static => (Vector3::zeros(), body.orientation),
         }
     }
 
@@ -518,15 +541,9 @@ impl MoreauJean {
         for c in &self.points {
             let (a, b) = (c.key.body_a as usize, c.key.body_b as usize);
             let frame = local_frame(&c.normal);
-            let arms = [
-                c.point.coords - bodies[a].position,
-                c.point.coords - (bodies[b].position + c.shift_b),
-            ];
+            let arms = lever_arms(c, bodies);
             // Normal relative velocity at the start of the step.
-            let point_velocity =
-                |k: usize, arm: &Vector3<f64>| start_velocity[k] + start_angular[k].cross(arm);
-            let u_start =
-                frame[0].dot(&(point_velocity(b, &arms[1]) - point_velocity(a, &arms[0])));
+            let u_start = normal_velocity(&frame[0], &arms, [a, b], start_velocity, start_angular);
             let predicted = c.gap + dt * (1.0 - theta) * u_start;
             // Open: may close but not cross. Closed (predicted ≤ 0): u_n ≥ 0, or with a
             // depenetration speed u_n ≥ min(−g*/(θh), that speed). A contact carried
@@ -572,15 +589,11 @@ impl MoreauJean {
             .iter()
             .enumerate()
             .map(|(k, body)| {
-                let v = (1.0 - theta) * start_velocity[k] + theta * self.velocity[k];
-                let w = (1.0 - theta) * start_angular[k] + theta * self.angular[k];
-                match body.motion {
-                    Motion::Static => poses[k],
-                    _ => Isometry3::from_parts(
-                        Translation3::from(body.position + dt * v),
-                        UnitQuaternion::from_scaled_axis(dt * w) * body.orientation,
-                    ),
-                }
+                let (displacement, orientation) = self.theta_motion(k, body, start_velocity);
+                Isometry3::from_parts(
+                    Translation3::from(body.position + displacement),
+                    orientation,
+                )
             })
             .collect();
         let (alert, reach) = (
@@ -617,24 +630,40 @@ impl MoreauJean {
                 // found at the end: the law then acts on the change of the motion,
                 // linearised where the solve left it (the start distance along the
                 // normal is no gap when the features do not face each other there).
-                let arms = [
-                    point.coords - bodies[a].position,
-                    point.coords - (bodies[b].position + c.shift_b),
-                ];
-                let normal_velocity = |v: &[Vector3<f64>], w: &[Vector3<f64>]| {
-                    normal.dot(&(v[b] + w[b].cross(&arms[1]) - v[a] - w[a].cross(&arms[0])))
-                };
-                let u_start = normal_velocity(start_velocity, start_angular);
-                let u_end = normal_velocity(&self.velocity, &self.angular);
+                let carried = ContactPoint { point, normal, ..c };
+                let arms = lever_arms(&carried, bodies);
+                let u_start =
+                    normal_velocity(&normal, &arms, [a, b], start_velocity, start_angular);
+                let u_end = normal_velocity(&normal, &arms, [a, b], &self.velocity, &self.angular);
                 ContactPoint {
-                    point,
-                    normal,
                     gap: c.gap - dt * ((1.0 - theta) * u_start + theta * u_end),
-                    ..c
+                    ..carried
                 }
             })
             .collect()
     }
+}
+
+/// The lever arms of contact `c` from its two bodies' centres (body b's periodic image).
+fn lever_arms(c: &ContactPoint, bodies: &[Body]) -> [Vector3<f64>; 2] {
+    let (a, b) = (c.key.body_a as usize, c.key.body_b as usize);
+    [
+        c.point.coords - bodies[a].position,
+        c.point.coords - (bodies[b].position + c.shift_b),
+    ]
+}
+
+/// The relative velocity of body b's point from body a's along `normal`, the points at
+/// `arms` from the centres of bodies `[a, b]`, with velocities `v` and world angular
+/// velocities `w`.
+fn normal_velocity(
+    normal: &Vector3<f64>,
+    arms: &[Vector3<f64>; 2],
+    [a, b]: [usize; 2],
+    v: &[Vector3<f64>],
+    w: &[Vector3<f64>],
+) -> f64 {
+    normal.dot(&(v[b] + w[b].cross(&arms[1]) - (v[a] + w[a].cross(&arms[0]))))
 }
 
 /// The free angular velocity (body frame) after `dt` without torques: explicit
