@@ -45,6 +45,10 @@ pub struct SphereSet {
     pub materials: usize,
     /// Periodicity, if any.
     pub period: Option<Period>,
+    /// Whether the pairs resting at their first-build overlap share one spring per
+    /// pair of bodies (or body and plane): each of the n pairs carries 1/n of its
+    /// force (`track.rest_pairs = "shared"`); false: each is a full spring.
+    pub shared_rest: bool,
 }
 
 impl SphereSet {
@@ -74,6 +78,9 @@ pub struct PairState {
     /// first built, which then carries no force (an imported packing starts at rest
     /// rather than exploding); 0 for pairs that meet later.
     pub rest: f64,
+    /// Share of the law's force this pair carries: 1, or 1/n for one of the n resting
+    /// pairs of a pair of bodies when the set's `shared_rest` is on.
+    pub share: f64,
     /// Force on the second member this step (N).
     #[serde(skip)]
     pub force: [f64; 3],
@@ -169,6 +176,7 @@ impl Contacts {
                 second: j,
                 xi: [0.0; 3],
                 rest: 0.0,
+                share: 1.0,
                 force: [0.0; 3],
             })
             .collect();
@@ -182,6 +190,7 @@ impl Contacts {
                         second: PLANE | k as u32,
                         xi: [0.0; 3],
                         rest: 0.0,
+                        share: 1.0,
                         force: [0.0; 3],
                     });
                 }
@@ -199,11 +208,15 @@ impl Contacts {
             if k < old.len() && (old[k].first, old[k].second) == (p.first, p.second) {
                 p.xi = old[k].xi;
                 p.rest = old[k].rest;
+                p.share = old[k].share;
             }
         }
         if state.rebuilds == 0 {
             for p in &mut fresh {
                 p.rest = self.overlap(p, positions).max(0.0);
+            }
+            if self.set.shared_rest {
+                self.share_rest(&mut fresh);
             }
         }
         state.pairs = fresh;
@@ -263,6 +276,28 @@ impl Contacts {
         self.gather = gather;
     }
 
+    /// Gives each of the n resting pairs (rest overlap > 0) of one pair of bodies, or of
+    /// a body and a plane, the share 1/n (`SphereSet::shared_rest`).
+    fn share_rest(&self, pairs: &mut [PairState]) {
+        let owner = &self.set.owner;
+        let key = |p: &PairState| {
+            let a = owner[p.first as usize];
+            if p.second & PLANE != 0 {
+                (a, p.second)
+            } else {
+                let b = owner[p.second as usize];
+                (a.min(b), a.max(b))
+            }
+        };
+        let mut count: std::collections::HashMap<(u32, u32), u32> = Default::default();
+        for p in pairs.iter().filter(|p| p.rest > 0.0) {
+            *count.entry(key(p)).or_default() += 1;
+        }
+        for p in pairs.iter_mut().filter(|p| p.rest > 0.0) {
+            p.share = 1.0 / count[&key(p)] as f64;
+        }
+    }
+
     /// Contact forces for sphere positions and velocities (the half-step velocities in
     /// Verlet), written into `forces` (one per sphere, overwritten); `dt` advances the
     /// tangential springs.
@@ -319,7 +354,19 @@ impl Contacts {
                 p.force = [0.0; 3];
                 return (PairForce::default(), 0.0, plane);
             }
-            let f = law.force(n, overlap, v_rel, &mut p.xi, m_eff, dt);
+            let mut f = law.force(n, overlap, v_rel, &mut p.xi, m_eff, dt);
+            if p.share != 1.0 {
+                // One of n resting pairs sharing a spring: 1/n of the force, and of the
+                // energies (the slider's limit scales with the normal force, so the
+                // spring slips where the full one would; the dashpot scales with it, so the
+                // cluster as a whole is one spring and dashpot of the law's damping ratio).
+                let s = p.share;
+                f.force = scale(f.force, s);
+                f.normal *= s;
+                f.spring_energy *= s;
+                f.slip_dissipated *= s;
+                f.damping_dissipated *= s;
+            }
             p.force = f.force;
             (f, overlap, plane)
         };
@@ -412,6 +459,7 @@ mod tests {
             laws: vec![ContactLaw::between(&m, &m, 0.5, 0.0)],
             materials: 1,
             period: None,
+            shared_rest: false,
         }
     }
 
@@ -438,5 +486,63 @@ mod tests {
         assert!(!c.evaluate(&mut state, &x, &v, 1e-5, &mut f).rebuilt);
         let moved = [[0.0, 0.0, 0.5], [0.02, 0.0, 0.5], [0.5, 0.0, 0.013]];
         assert!(c.evaluate(&mut state, &moved, &v, 1e-5, &mut f).rebuilt);
+    }
+
+    /// Shared rest: a body resting on another through three overlapping sphere pairs,
+    /// and one on the floor through two, share one spring per touching pair (a 0.5 mm
+    /// push gives k · 0.5 mm, not 3 k · 0.5 mm); a pair that meets later is a full spring.
+    #[test]
+    fn resting_pairs_of_one_body_pair_share_one_spring() {
+        let mut shared = set(10, vec![0, 0, 0, 1, 1, 1, 2, 2, 3, 4]);
+        shared.shared_rest = true;
+        let mut c = Contacts::new(shared, 0.005);
+        let mut state = ContactState::default();
+        // Body 0 over body 1, 1 mm into it (centres 23 mm apart, radii 12 mm); body 2
+        // 1 mm into the floor; body 4's sphere 10 mm above body 3's.
+        let mut x = [[0.0; 3]; 10];
+        for k in 0..3 {
+            x[k] = [0.1 * k as f64, 0.0, 0.5];
+            x[3 + k] = [0.1 * k as f64, 0.0, 0.477];
+        }
+        x[6] = [0.5, 0.0, 0.011];
+        x[7] = [0.6, 0.0, 0.011];
+        x[8] = [0.8, 0.0, 0.3];
+        x[9] = [0.8, 0.0, 0.334];
+        let v = [[0.0; 3]; 10];
+        let mut forces = [[0.0; 3]; 10];
+        c.evaluate(&mut state, &x, &v, 1e-5, &mut forces);
+        assert!(forces.iter().flatten().all(|&f| f == 0.0), "at rest");
+        let mut shares: Vec<f64> = state.pairs.iter().map(|p| p.share).collect();
+        shares.sort_by(f64::total_cmp);
+        assert_eq!(
+            shares,
+            [1.0 / 3.0; 3]
+                .into_iter()
+                .chain([0.5; 2])
+                .collect::<Vec<_>>()
+        );
+        // Body 0 pressed 0.5 mm further, body 2 too, and body 4 brought 4 mm into body 3
+        // (a rebuild, which keeps the shares).
+        for k in [0, 1, 2, 6, 7] {
+            x[k][2] -= 0.0005;
+        }
+        x[9][2] = 0.32;
+        assert!(c.evaluate(&mut state, &x, &v, 1e-5, &mut forces).rebuilt);
+        let on = |r: std::ops::Range<usize>| forces[r].iter().map(|f| f[2]).sum::<f64>();
+        assert!(
+            (on(0..3) - 1e6 * 0.0005).abs() < 1e-6,
+            "body 0: {}",
+            on(0..3)
+        );
+        assert!(
+            (on(6..8) - 1e6 * 0.0005).abs() < 1e-6,
+            "body 2: {}",
+            on(6..8)
+        );
+        assert!(
+            (on(9..10) - 1e6 * 0.004).abs() < 1e-6,
+            "body 4: {}",
+            on(9..10)
+        );
     }
 }

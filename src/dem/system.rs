@@ -737,6 +737,7 @@ mod tests {
                 laws: vec![ContactLaw::between(&m, &m, mu, 0.1)],
                 materials: 1,
                 period: None,
+                shared_rest: false,
             },
             gravity,
         }

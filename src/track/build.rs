@@ -10,7 +10,7 @@ use std::path::Path;
 use nalgebra::{Point3, Vector3};
 
 use super::loads::RailSeatLoads;
-use super::scene::{Periodic, SensorOn, SphereCentres, StoneModel, TrackScene};
+use super::scene::{Periodic, RestPairs, SensorOn, SphereCentres, StoneModel, TrackScene};
 use crate::dem::{
     BodyKind, ContactLaw, MultiBody, Period, Plane, RigidShape, SphereAt, SphereMaterial, SphereSet,
 };
@@ -296,6 +296,7 @@ pub fn build(
         laws: Vec::new(),
         materials: 4,
         period: None,
+        shared_rest: t.rest_pairs == RestPairs::Shared,
     };
     for &(node, material, owner, body, (inset, r)) in &node_spheres {
         spheres.push(SphereAt::Node { node, body, inset });
