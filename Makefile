@@ -93,14 +93,17 @@ docs/img/meshes.png: tools/render_meshes.py results/mesh_gallery/summary.json | 
 ## Tests: formatting, then every test target built with clippy's lints (warnings denied)
 ## by tools/clippy-rustc, so the test build is the lint pass (a separate `cargo clippy`
 ## took 2.5 min of CI), then every test (they read what the real tools write). The build
-## needs no meshes: `make -j2 test` (.ci/run) builds while gmsh meshes.
+## needs no meshes, so a sub-make runs it beside the set-up and gmsh (two jobs: on the
+## 2-core CI runner cargo builds while gmsh meshes).
 LINTED_CARGO := RUSTC_WORKSPACE_WRAPPER=$(abspath tools/clippy-rustc) $(CARGO)
-test: $(SYSTEM_DEPS_STAMP) $(VENV_STAMP) $(OBJECT_MESHES) $(QDEM_QUICK_MESHES) $(STONE_MESHES) test-build
+.PHONY: test-build test-inputs
+test:
+	$(MAKE) -j2 test-build test-inputs
 	$(LINTED_CARGO) test --release --locked
-.PHONY: test-build
 test-build: $(SYSTEM_DEPS_STAMP)
 	$(CARGO) fmt --check
 	$(LINTED_CARGO) test --release --locked --no-run
+test-inputs: $(OBJECT_MESHES) $(QDEM_QUICK_MESHES) $(STONE_MESHES)
 
 ## Lints alone (what the test build checks), with clippy's own command.
 lint:
