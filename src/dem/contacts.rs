@@ -356,16 +356,11 @@ impl Contacts {
             }
             let mut f = law.force(n, overlap, v_rel, &mut p.xi, m_eff, dt);
             if p.share != 1.0 {
-                // One of n resting pairs sharing a spring: 1/n of the force, and of the
-                // energies (the slider's limit scales with the normal force, so the
-                // spring slips where the full one would; the dashpot scales with it, so the
-                // cluster as a whole is one spring and dashpot of the law's damping ratio).
-                let s = p.share;
-                f.force = scale(f.force, s);
-                f.normal *= s;
-                f.spring_energy *= s;
-                f.slip_dissipated *= s;
-                f.damping_dissipated *= s;
+                // One of n resting pairs sharing a spring. The slider's limit scales with
+                // the normal force, so the spring slips where the full one would; the
+                // dashpot scales too, so the cluster is one spring and dashpot of the
+                // law's damping ratio.
+                f = f.scaled(p.share);
             }
             p.force = f.force;
             (f, overlap, plane)

@@ -122,6 +122,20 @@ pub struct PairForce {
     pub damping_dissipated: f64,
 }
 
+impl PairForce {
+    /// The force and its energies times `s`: the part one of n pairs carries when they
+    /// share one spring (`SphereSet::shared_rest`, s = 1/n).
+    pub fn scaled(self, s: f64) -> Self {
+        PairForce {
+            force: scale(self.force, s),
+            normal: s * self.normal,
+            spring_energy: s * self.spring_energy,
+            slip_dissipated: s * self.slip_dissipated,
+            damping_dissipated: s * self.damping_dissipated,
+        }
+    }
+}
+
 pub(crate) fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
