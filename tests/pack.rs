@@ -91,10 +91,32 @@ fn quick_bed_is_settled_dense_and_inside_its_box() {
         "max interpenetration {max} d50: {}",
         f["deepest_overlap"]
     );
+    // The under-sleeper layer is compacted (the floor vibrates) before the sleepers are
+    // laid: the phases in that order.
+    let phases: Vec<&str> = f["phases"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| p["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        phases,
+        [
+            "under-sleeper layer",
+            "compaction",
+            "settle after compaction",
+            "lower sleepers",
+            "crib",
+            "final settle"
+        ]
+    );
     // Compactness (solid fraction) per control box, exact by clipping. Railway ballast
     // in track: 0.55–0.65 (porosity 0.35–0.45; Indraratna, Salim & Rujikiatkamjorn,
-    // *Advanced Rail Geotechnology – Ballasted Track*, 2011). A gravity deposit without
-    // compaction in a box a few stones wide sits at the loose end: 0.50–0.66 is allowed.
+    // *Advanced Rail Geotechnology – Ballasted Track*, 2011). The compacted bed is in
+    // that range (0.58–0.61 on five quick beds, docs/pack.md). The boxes under the
+    // sleepers and in the crib, two stones high and a few wide, vary by ±0.04 between
+    // seeds and hold the voids the sleeper's flat underside leaves on the stones it rests
+    // on: 0.50–0.66 is allowed there.
     let boxes = f["compactness"].as_array().expect("compactness list");
     let names: Vec<&str> = boxes.iter().map(|b| b["box"].as_str().unwrap()).collect();
     assert_eq!(
@@ -103,7 +125,12 @@ fn quick_bed_is_settled_dense_and_inside_its_box() {
     );
     for b in boxes {
         let value = b["value"].as_f64().unwrap();
-        assert!((0.50..0.66).contains(&value), "{}: {value}", b["box"]);
+        let range = if b["box"] == "bed" {
+            0.55..0.65
+        } else {
+            0.50..0.66
+        };
+        assert!(range.contains(&value), "{}: {value}", b["box"]);
     }
     let coordination = figure(&f, "coordination_number");
     assert!(
@@ -518,9 +545,13 @@ fn a_vibrating_floor_compacts_a_plain_box_and_comes_back_to_rest() {
 #[test]
 fn beds_that_cannot_hold_the_stones_are_one_line_errors() {
     let work = tempfile::tempdir().unwrap();
-    let cases: [(&[&str], &str); 6] = [
+    let cases: [(&[&str], &str); 7] = [
         // Periodic, the quick bed's 0.7 m is not its two 0.3 m sleeper bays.
         (&["--set", "bed.sides=\"periodic\""], "key bed.length"),
+        (
+            &["--set", "compaction.stage=\"crib\""],
+            "key compaction.stage",
+        ),
         (&["--set", "bed.sides=\"open\""], "key bed.sides"),
         (
             &["--set", "bed.shoulder_width=\"0.1 m\""],

@@ -210,6 +210,8 @@ pub struct Deposition {
     engine: MoreauJean,
     /// Finishing (compaction, final settle): no drag, strict settling.
     finishing: bool,
+    /// The floor is vibrating: no drag (it would damp the shaking).
+    vibrating: bool,
     random: SplitMix,
     cell: f64,
     inserted: usize,
@@ -250,6 +252,7 @@ impl Deposition {
             phases: Vec::new(),
             engine,
             finishing: false,
+            vibrating: false,
             random,
             inserted: 0,
         }
@@ -313,7 +316,7 @@ impl Deposition {
         } else {
             &self.setup.friction
         };
-        if let (Some(tau), false) = (self.setup.drag_time, self.finishing) {
+        if let (Some(tau), false) = (self.setup.drag_time, self.finishing || self.vibrating) {
             // Exact decay of a linear drag over the step, applied before it.
             let factor = (-self.setup.params.dt / tau).exp();
             for b in self.bodies.iter_mut().filter(|b| b.is_dynamic()) {
@@ -668,8 +671,8 @@ impl Deposition {
     }
 
     /// Vibrates the floor vertically (`A sin 2πft`, whole cycles, so the floor ends
-    /// where it started up to the θ-rule's O(h²)), then lets the bed settle with the
-    /// floor at rest.
+    /// where it started up to the θ-rule's O(h²)), without drag and with the final
+    /// friction table, then lets the bed settle with the floor at rest.
     pub fn compact(
         &mut self,
         amplitude: f64,
@@ -690,9 +693,11 @@ impl Deposition {
         // Body 0 is the floor (see `new`).
         self.bodies[0].velocity = motion.velocity_at(self.time);
         self.bodies[0].motion = Motion::Driven(motion);
+        self.vibrating = true;
         for _ in 0..steps {
             self.step(false, "compaction", observe);
         }
+        self.vibrating = false;
         self.bodies[0].motion = Motion::Static;
         self.bodies[0].velocity = Vector3::zeros();
         self.phases.push(PhaseReport {

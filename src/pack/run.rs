@@ -19,14 +19,14 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use serde_json::json;
 
-use super::deposit::{bounds, DepositSetup, Deposition, Role, SleeperModel};
+use super::deposit::{bounds, DepositSetup, Deposition, Observer, Role, SleeperModel};
 use super::packing::{PackedMesh, Packing, Placement, PACKING_FORMAT};
 use super::profile::Profile;
 use super::report::{
     compactness, control_boxes, coordination_numbers, interpenetration, median, stones_outside,
     Compactness,
 };
-use super::scene::BedScene;
+use super::scene::{BedScene, CompactionStage};
 use crate::ddm::Partitioning;
 use crate::geometry::{ControlBox, Period};
 use crate::nscd::body::{Body, BodyShape};
@@ -385,9 +385,23 @@ pub fn run(ctx: &RunContext) -> Result<()> {
         bar.tick();
     };
 
+    let compact = |bed: &mut Deposition, observe: &mut Observer| {
+        if let Some(c) = &scene.compaction {
+            bed.compact(
+                c.amplitude.si(),
+                c.frequency.si(),
+                c.duration.si(),
+                observe,
+            );
+        }
+    };
+    let stage = scene.compaction.as_ref().map(|c| c.stage);
     match &sleeper {
         Some(source) => {
             bed.fill("under-sleeper layer", 0.0, depth, true, &mut observe);
+            if stage == Some(CompactionStage::Layer) {
+                compact(&mut bed, &mut observe);
+            }
             let placed: Vec<(SleeperModel, [f64; 2])> = nominal
                 .iter()
                 .map(|xy| (source.model.clone(), *xy))
@@ -397,16 +411,11 @@ pub fn run(ctx: &RunContext) -> Result<()> {
         }
         None => bed.fill("bed", 0.0, depth, true, &mut observe),
     }
-    // Compaction and the final settle run under gravity and contact alone, and the
-    // final state has no body moving.
+    // Compaction of the finished bed and the final settle run under gravity and
+    // contact alone, and the final state has no body moving.
     bed.finish();
-    if let Some(c) = &scene.compaction {
-        bed.compact(
-            c.amplitude.si(),
-            c.frequency.si(),
-            c.duration.si(),
-            &mut observe,
-        );
+    if stage == Some(CompactionStage::Bed) || (sleeper.is_none() && stage.is_some()) {
+        compact(&mut bed, &mut observe);
     }
     bed.settle("final settle", &mut observe);
     bar.finish_and_clear();

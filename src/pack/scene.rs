@@ -48,6 +48,9 @@
 //! amplitude = "1 mm"
 //! frequency = "30 Hz"
 //! duration = "0.5 s"
+//! stage = "bed"                         # "layer": the under-sleeper layer, before the
+//!                                       # sleepers are laid; "bed" (default): the
+//!                                       # finished bed
 //!
 //! [[material]] / [[friction]]           # as in ballast-nscd scenes
 //! [output]
@@ -225,6 +228,22 @@ pub struct CompactionSpec {
     pub frequency: Frequency,
     /// Duration (rounded to whole cycles).
     pub duration: Time,
+    /// When: the under-sleeper layer before the sleepers are laid, or the finished bed.
+    #[serde(default)]
+    pub stage: CompactionStage,
+}
+
+/// When the bed is compacted.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum CompactionStage {
+    /// The under-sleeper layer, struck off and settled, before the sleepers are laid
+    /// (as the bottom ballast is compacted in track construction); a bed without
+    /// sleepers is compacted once filled.
+    Layer,
+    /// The finished bed, sleepers and crib included, before the final settle.
+    #[default]
+    Bed,
 }
 
 /// `[output]`.
