@@ -387,12 +387,7 @@ pub fn run(ctx: &RunContext) -> Result<()> {
 
     let compact = |bed: &mut Deposition, observe: &mut Observer| {
         if let Some(c) = &scene.compaction {
-            bed.compact(
-                c.amplitude.si(),
-                c.frequency.si(),
-                c.duration.si(),
-                observe,
-            );
+            bed.compact(c.amplitude.si(), c.frequency.si(), c.duration.si(), observe);
         }
     };
     let stage = scene.compaction.as_ref().map(|c| c.stage);
