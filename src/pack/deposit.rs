@@ -670,8 +670,9 @@ impl Deposition {
         self.settle("lower sleepers", observe);
     }
 
-    /// Vibrates the floor vertically (`A sin 2πft`, whole cycles, so the floor ends
-    /// where it started up to the θ-rule's O(h²)), without drag and with the final
+    /// Vibrates the floor vertically (`A sin 2πft`, whole cycles, the frequency
+    /// adjusted so that they are whole steps too, so the floor ends where it started up
+    /// to round-off), without drag and with the final
     /// friction table, then lets the bed settle with the floor at rest.
     pub fn compact(
         &mut self,
@@ -682,7 +683,13 @@ impl Deposition {
     ) {
         let cycles = (duration * frequency).round().max(1.0);
         let dt = self.setup.params.dt;
-        let steps = (cycles / frequency / dt).round() as u64;
+        let steps = (cycles / frequency / dt).round().max(1.0) as u64;
+        // The frequency that makes those steps whole cycles (35 Hz with 2 ms steps: 18
+        // cycles in 257 steps at 35.019 Hz). At the nominal frequency the floor would
+        // stop a fraction of a step short of a cycle, up to 2π f dt / 2 × the
+        // amplitude off its rest level (43 µm for 1 mm at 35 Hz), and a packing read
+        // back with the floor at 0 would start with every stone above it.
+        let frequency = cycles / (steps as f64 * dt);
         let start = self.time;
         let motion = Prescribed {
             velocity: Vector3::zeros(),
