@@ -91,35 +91,10 @@ fn quick_bed_is_settled_dense_and_inside_its_box() {
         "max interpenetration {max} d50: {}",
         f["deepest_overlap"]
     );
-    // The under-sleeper layer is compacted (the floor vibrates) before the sleepers are
-    // laid: the phases in that order.
-    let phases: Vec<&str> = f["phases"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|p| p["name"].as_str().unwrap())
-        .collect();
-    assert_eq!(
-        phases,
-        [
-            "under-sleeper layer",
-            "compaction",
-            "settle after compaction",
-            "lower sleepers",
-            "crib",
-            "final settle"
-        ]
-    );
-    // Whole cycles in whole steps: the floor is back at its rest level, where a reader
-    // of the packing puts it (35 Hz is not a whole number of 2 ms steps per cycle).
-    assert!(figure(&f, "floor_offset_m").abs() < 1e-12);
     // Compactness (solid fraction) per control box, exact by clipping. Railway ballast
     // in track: 0.55–0.65 (porosity 0.35–0.45; Indraratna, Salim & Rujikiatkamjorn,
-    // *Advanced Rail Geotechnology – Ballasted Track*, 2011). The compacted bed is in
-    // that range (0.58–0.61 on five quick beds, docs/pack.md). The boxes under the
-    // sleepers and in the crib, two stones high and a few wide, vary by ±0.04 between
-    // seeds and hold the voids the sleeper's flat underside leaves on the stones it rests
-    // on: 0.50–0.66 is allowed there.
+    // *Advanced Rail Geotechnology – Ballasted Track*, 2011). A gravity deposit without
+    // compaction in a box a few stones wide sits at the loose end: 0.50–0.66 is allowed.
     let boxes = f["compactness"].as_array().expect("compactness list");
     let names: Vec<&str> = boxes.iter().map(|b| b["box"].as_str().unwrap()).collect();
     assert_eq!(
@@ -128,12 +103,7 @@ fn quick_bed_is_settled_dense_and_inside_its_box() {
     );
     for b in boxes {
         let value = b["value"].as_f64().unwrap();
-        let range = if b["box"] == "bed" {
-            0.55..0.65
-        } else {
-            0.50..0.66
-        };
-        assert!(range.contains(&value), "{}: {value}", b["box"]);
+        assert!((0.50..0.66).contains(&value), "{}: {value}", b["box"]);
     }
     let coordination = figure(&f, "coordination_number");
     assert!(
@@ -503,7 +473,7 @@ fn a_vibrating_floor_compacts_a_plain_box_and_comes_back_to_rest() {
         .replace("depth = \"0.25 m\"", "depth = \"0.08 m\"")
         .replace(
             "[output]",
-            "[compaction]\namplitude = \"0.5 mm\"\nfrequency = \"35 Hz\"\nduration = \"0.2 s\"\n\n[output]",
+            "[compaction]\namplitude = \"0.5 mm\"\nfrequency = \"35 Hz\"\nduration = \"0.3 s\"\n\n[output]",
         );
     let path = work.path().join("box.toml");
     std::fs::write(&path, scene).unwrap();
@@ -529,8 +499,11 @@ fn a_vibrating_floor_compacts_a_plain_box_and_comes_back_to_rest() {
         .iter()
         .find(|p| p["name"] == "compaction")
         .unwrap();
-    assert_eq!(compaction["steps"], 100);
-    // Whole cycles: the floor's displacement integrates to zero up to round-off.
+    // 0.3 s at 35 Hz: 11 whole cycles (10.5 rounded), 157.14 steps of 2 ms rounded to
+    // 157, the frequency made 35.03 Hz so that they are whole cycles.
+    assert_eq!(compaction["steps"], 157);
+    // Whole cycles: the floor's displacement integrates to zero up to round-off (at
+    // 35 Hz itself it would end 0.14 of a step short: about 30 µm off).
     assert!(figure(&f, "floor_offset_m").abs() < 1e-12);
     assert_eq!(f["settled"], true, "{}", f["phases"]);
     assert_eq!(figure(&f, "stones_outside"), 0.0);
