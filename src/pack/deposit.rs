@@ -672,8 +672,8 @@ impl Deposition {
 
     /// Vibrates the floor vertically (`A sin 2πft`, whole cycles, the frequency
     /// adjusted so that they are whole steps too, so the floor ends where it started up
-    /// to round-off), without drag and with the final
-    /// friction table, then lets the bed settle with the floor at rest.
+    /// to round-off), without drag and with the final friction table, then lets the
+    /// bed settle with the floor at rest.
     pub fn compact(
         &mut self,
         amplitude: f64,
