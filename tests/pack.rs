@@ -447,11 +447,10 @@ fn malformed_packings_give_one_line_errors() {
     assert_success(&run_nscd(&scene, &work.path().join("out")));
 }
 
-#[test]
-fn a_vibrating_floor_compacts_a_plain_box_and_comes_back_to_rest() {
-    // A plain box (no sleepers) of some 60 stones, the floor vibrated 0.5 mm at 35 Hz
-    // for 0.2 s: 7 whole cycles, round(7 / 35 Hz / 2 ms) = 100 steps, after which the
-    // floor is back where it started.
+/// Runs ballast-pack on the base scene made a 0.3 × 0.3 m box, `depth` deep (under
+/// the sleepers), with `sleepers` as its `[sleepers]` table (empty: none) and
+/// `compaction` as its `[compaction]` table; returns the work and output directories.
+fn small_box(depth: &str, sleepers: &str, compaction: &str) -> (tempfile::TempDir, PathBuf) {
     let work = tempfile::tempdir().unwrap();
     let base = std::fs::read_to_string(root().join("scenes/bed.toml")).unwrap();
     let stones = root().join("meshes/stones");
@@ -463,17 +462,16 @@ fn a_vibrating_floor_compacts_a_plain_box_and_comes_back_to_rest() {
         scene.push_str(&line.replace("\"../meshes/stones\"", &format!("{stones:?}")));
         scene.push('\n');
     }
-    // No sleepers: a plain box 0.3 × 0.3 m, 0.08 m deep.
     let start = scene.find("[sleepers]").unwrap();
     let end = scene[start..].find("[deposit]").unwrap() + start;
-    scene.replace_range(start..end, "");
+    scene.replace_range(start..end, sleepers);
     let scene = scene
         .replace("length = \"1.8 m\"", "length = \"0.3 m\"")
         .replace("width = \"1.0 m\"", "width = \"0.3 m\"")
-        .replace("depth = \"0.25 m\"", "depth = \"0.08 m\"")
+        .replace("depth = \"0.25 m\"", &format!("depth = \"{depth}\""))
         .replace(
             "[output]",
-            "[compaction]\namplitude = \"0.5 mm\"\nfrequency = \"35 Hz\"\nduration = \"0.3 s\"\n\n[output]",
+            &format!("[compaction]\n{compaction}\n\n[output]"),
         );
     let path = work.path().join("box.toml");
     std::fs::write(&path, scene).unwrap();
@@ -485,6 +483,17 @@ fn a_vibrating_floor_compacts_a_plain_box_and_comes_back_to_rest() {
         .output()
         .unwrap();
     assert_success(&output);
+    (work, out)
+}
+
+#[test]
+fn a_vibrating_floor_compacts_a_plain_box_and_comes_back_to_rest() {
+    // A plain box (no sleepers) of some 60 stones, the floor vibrated 0.5 mm at 35 Hz.
+    let (_work, out) = small_box(
+        "0.08 m",
+        "",
+        "amplitude = \"0.5 mm\"\nfrequency = \"35 Hz\"\nduration = \"0.3 s\"",
+    );
     let f = figures(&out);
     let phases: Vec<&str> = f["phases"]
         .as_array()
@@ -516,6 +525,41 @@ fn a_vibrating_floor_compacts_a_plain_box_and_comes_back_to_rest() {
         .map(|b| b["box"].as_str().unwrap())
         .collect();
     assert_eq!(names, ["bed"]);
+}
+
+#[test]
+fn the_layer_is_compacted_before_the_sleeper_is_laid() {
+    // `stage = "layer"` (the table3 and tamping7 presets): one sleeper in the box, the
+    // floor vibrated between the under-sleeper layer and the lowering of the sleeper.
+    let (_work, out) = small_box(
+        "0.12 m",
+        "[sleepers]\ncount = 1\nspacing = \"0.3 m\"\nsize = [\"0.1 m\", \"0.2 m\", \"0.06 m\"]\n\
+         embed = \"0.03 m\"\nmaterial = \"concrete\"\n\n",
+        "amplitude = \"1 mm\"\nfrequency = \"35 Hz\"\nduration = \"0.3 s\"\nstage = \"layer\"",
+    );
+    let f = figures(&out);
+    let phases: Vec<&str> = f["phases"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| p["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        phases,
+        [
+            "under-sleeper layer",
+            "compaction",
+            "settle after compaction",
+            "lower sleepers",
+            "crib",
+            "final settle"
+        ]
+    );
+    assert!(figure(&f, "floor_offset_m").abs() < 1e-12);
+    assert_eq!(f["settled"], true, "{}", f["phases"]);
+    assert_eq!(figure(&f, "sleepers"), 1.0);
+    assert_eq!(figure(&f, "stones_outside"), 0.0);
+    assert!(figure(&f, "max_interpenetration_over_d50") < 1e-3);
 }
 
 #[test]
