@@ -6,17 +6,21 @@
   tamping_report.py bench --nscd BIN --preset P --steps N --out DIR [--repeat R]
       runs scenes/tamping.toml --preset P for its first N steps in the three versions
       of the seed's Table 3 (1: no DDM, 1 thread; 2: synchronous DDM, 2 threads;
-      3: asynchronous DDM, 2 threads) and prints the wall times in the Table 3 layout
-      beside the seed's (923 / 621 / 607 min on 1 / 3 / 3 cores), the speedup and
-      efficiency as in its Table 2, and the asynchronous run's compactness against
-      the synchronous one's (issue #7: within 2 %; the seed: 1.7 %). With --repeat R
-      the three versions run R times in turn and every wall time is the median of its
-      R runs (the runs of one version give the same results, bit for bit).
+      3: asynchronous DDM, 2 threads), and a fourth beyond the seed's table (4: the
+      synchronous DDM on 4 slabs balanced by contact count, the seed's §5 suggestion:
+      more subdomains than threads, so that 2 threads share them evenly), and prints
+      the wall times in the Table 3 layout beside the seed's (923 / 621 / 607 min on
+      1 / 3 / 3 cores), the speedup and efficiency as in its Table 2, and the
+      asynchronous run's compactness against the synchronous one's (issue #7: within
+      2 %; the seed: 1.7 %). With --repeat R the versions run R times in turn and
+      every wall time is the median of its R runs (the runs of one version give the
+      same results, bit for bit).
 """
 
 import csv
 import json
 import os
+import re
 import statistics
 import subprocess
 import sys
@@ -28,11 +32,30 @@ SEED_TABLE3 = {
     2: (3, 621, 175, 424, 22),
     3: (3, 607, 172, 414, 21),
 }
+# version -> (name, driver, threads, balanced slabs or None for the scene's partition).
 VERSIONS = {
-    1: ("sequential (no DDM)", "none", 1),
-    2: ("synchronous DDM", "synchronous", 2),
-    3: ("asynchronous DDM", "asynchronous", 2),
+    1: ("sequential (no DDM)", "none", 1, None),
+    2: ("synchronous DDM", "synchronous", 2, None),
+    3: ("asynchronous DDM", "asynchronous", 2, None),
+    4: ("synchronous DDM, 4 balanced slabs", "synchronous", 2, 4),
 }
+SCENE = "scenes/tamping.toml"
+
+
+def balanced_scene(n):
+    """A copy of SCENE, beside it (its paths are relative to it), whose [ddm] table
+    cuts n slabs balanced by contact count instead of the scene's and presets' cuts
+    (`balanced` excludes `cuts`, and --set cannot remove a key)."""
+    with open(SCENE) as f:
+        text = f.read()
+    text, removed = re.subn(r"(?m)^(ddm\.)?cuts\s*=.*\n", "", text)
+    text, added = re.subn(r"(?m)^\[ddm\]\n", "[ddm]\nbalanced = %d\n" % n, text)
+    if removed == 0 or added != 1:
+        sys.exit("tamping_report: %s: no [ddm] cuts to replace with balanced = %d" % (SCENE, n))
+    path = os.path.join(os.path.dirname(SCENE), ".tamping-balanced-%d.toml" % n)
+    with open(path, "w") as f:
+        f.write(text)
+    return path
 
 
 def load(directory):
@@ -114,7 +137,7 @@ def bench(nscd, preset, steps, out, repeat=1):
     os.makedirs(out, exist_ok=True)
     # The preset's step, from the summary of a one-step run (the same for every version).
     with tempfile.TemporaryDirectory() as probe:
-        subprocess.run([nscd, "scenes/tamping.toml", "--preset", preset, "--out", probe,
+        subprocess.run([nscd, SCENE, "--preset", preset, "--out", probe,
                         "--set", "output.frames=0", "--set", "output.checkpoint_every=0",
                         "--set", "time.duration=1e-9"],
                        check=True, stdout=subprocess.DEVNULL)
@@ -124,14 +147,19 @@ def bench(nscd, preset, steps, out, repeat=1):
     runs = {v: [] for v in VERSIONS}
     # The versions in turn, so that a slow spell of the machine hits them alike.
     for r in range(repeat):
-        for version, (name, driver, threads) in VERSIONS.items():
+        for version, (name, driver, threads, balanced) in VERSIONS.items():
             d = os.path.join(out, "version-%d" % version)
-            cmd = [nscd, "scenes/tamping.toml", "--preset", preset, "--out", d,
+            scene = balanced_scene(balanced) if balanced else SCENE
+            cmd = [nscd, scene, "--preset", preset, "--out", d,
                    "--threads", str(threads), "--set", "ddm.driver=\"%s\"" % driver,
                    "--set", "output.frames=2", "--set", "time.duration=%r" % (steps * dt)]
             print("tamping_report: run %d/%d:" % (r + 1, repeat), " ".join(cmd),
                   file=sys.stderr, flush=True)
-            subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
+            try:
+                subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
+            finally:
+                if scene != SCENE:
+                    os.remove(scene)
             with open(os.path.join(d, "summary.json")) as f:
                 results[version] = json.load(f)
             runs[version].append(results[version])
@@ -149,25 +177,27 @@ def bench(nscd, preset, steps, out, repeat=1):
         cells = []
         for v in VERSIONS:
             if key is None:
-                cells.append("%d [%d]" % (VERSIONS[v][2], SEED_TABLE3[v][0]))
+                cells.append("%d" % VERSIONS[v][2]
+                             + (" [%d]" % SEED_TABLE3[v][0] if v in SEED_TABLE3 else ""))
                 continue
             value = times[v][key] / 60.0
-            seed = SEED_TABLE3[v][seed_col[key]] if key in seed_col else None
+            seed = SEED_TABLE3[v][seed_col[key]] if key in seed_col and v in SEED_TABLE3 else None
             cells.append("%.2f" % value + (" [%d]" % seed if seed is not None else ""))
         print("| %s | %s |" % (label, " | ".join(cells)))
     print("\n## Speedup and efficiency against version 1 (Table 2 layout)\n")
     print("| version | threads | NLGS speedup | NLGS efficiency | full speedup | full efficiency | seed full speedup |")
     print("|---|---|---|---|---|---|---|")
-    for v in (2, 3):
+    for v in list(VERSIONS)[1:]:
         p = times[v]
         threads = VERSIONS[v][2]
         s_solve = ref["solve"] / p["solve"]
         s_full = ref["total"] / p["total"]
-        seed = SEED_TABLE3[1][1] / SEED_TABLE3[v][1]
-        print("| %d | %d | %.2f | %.1f %% | %.2f | %.1f %% | %.2f on 3 cores |"
+        seed = ("%.2f on 3 cores" % (SEED_TABLE3[1][1] / SEED_TABLE3[v][1])
+                if v in SEED_TABLE3 else "—")
+        print("| %d | %d | %.2f | %.1f %% | %.2f | %.1f %% | %s |"
               % (v, threads, s_solve, 100 * s_solve / threads, s_full,
                  100 * s_full / threads, seed))
-    print("\n## Physics of the three versions\n")
+    print("\n## Physics of the versions\n")
     print("| version | compactness before | after | squeeze start -> end | max interpenetration (m) | final mean interpenetration (m) |")
     print("|---|---|---|---|---|---|")
     for v, s in results.items():
