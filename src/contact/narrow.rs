@@ -940,6 +940,22 @@ mod tests {
         }
     }
 
+    /// Random unit vectors, uniform on the sphere, from a seeded xorshift generator (the
+    /// same sequence on every machine).
+    fn unit_vectors(mut seed: u64) -> impl FnMut() -> Vector3<f64> {
+        let mut random = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        move || {
+            let (z, phi): (f64, f64) = (2.0 * random() - 1.0, std::f64::consts::TAU * random());
+            let r = (1.0 - z * z).sqrt();
+            Vector3::new(r * phi.cos(), r * phi.sin(), z)
+        }
+    }
+
     #[test]
     fn random_hulls_report_their_closest_or_deepest_point() {
         // Random stone-like hulls (20 points on an ellipsoid) at random orientations,
@@ -949,18 +965,7 @@ mod tests {
         // no point may claim an overlap. parry's own manifold clipped the support
         // features along GJK's normal and could report only points gaps above d.
         use parry3d_f64::query::details::contact_support_map_support_map;
-        let mut seed = 0x2545_f491_4f6c_dd1du64;
-        let mut random = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
-        let mut unit = || {
-            let (z, phi): (f64, f64) = (2.0 * random() - 1.0, std::f64::consts::TAU * random());
-            let r = (1.0 - z * z).sqrt();
-            Vector3::new(r * phi.cos(), r * phi.sin(), z)
-        };
+        let mut unit = unit_vectors(0x2545_f491_4f6c_dd1du64);
         let mut checked = 0;
         for _ in 0..200 {
             let hull = |unit: &mut dyn FnMut() -> Vector3<f64>| {
@@ -1023,18 +1028,7 @@ mod tests {
         // table3 bed's phantoms; in a scan of flatter hulls one claimed 1.8 mm of
         // overlap between hulls 5.5 mm apart).
         use parry3d_f64::query::details::distance_support_map_support_map;
-        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
-        let mut random = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
-        let mut unit = || {
-            let (z, phi): (f64, f64) = (2.0 * random() - 1.0, std::f64::consts::TAU * random());
-            let r = (1.0 - z * z).sqrt();
-            Vector3::new(r * phi.cos(), r * phi.sin(), z)
-        };
+        let mut unit = unit_vectors(0x9e37_79b9_7f4a_7c15u64);
         let alert = 2e-3;
         for trial in 0..3000 {
             let hull = |unit: &mut dyn FnMut() -> Vector3<f64>| {
