@@ -275,9 +275,9 @@ fn convex_convex_contacts(
         // — unless GJK finds the pair apart, where its axis stands, or farther apart
         // than the alert distance, where there is no contact (see `gjk_separation`).
         let (sat, sat_normal) = match gjk_separation(pos12, a, b, alert) {
-            None => return,
-            Some(Some((s, n))) if sat <= 0.0 => (s, n),
-            Some(_) => (sat, sat_normal),
+            Some((s, _)) if s > alert => return,
+            Some((s, n)) if s > 0.0 && sat <= 0.0 => (s, n),
+            _ => (sat, sat_normal),
         };
         let (ia, pa) = support_vertex(a, &sat_normal);
         let (ib, pb) = support_vertex(b, &pos12.inverse_transform_vector(&-sat_normal));
@@ -291,10 +291,10 @@ fn convex_convex_contacts(
     }
 }
 
-/// GJK (parry's, bounded by the alert distance): `None` when it finds an axis that
-/// separates the pair by more than `alert`; `Some(Some((s, n)))` when it finds them
-/// apart, by `s > 0` along the unit axis `n` (a's frame, from a to b); `Some(None)`
-/// when they touch or overlap. Each separation is measured with the support points
+/// GJK (parry's, bounded by the alert distance): the axis it ends on, `n` (unit, a's
+/// frame, from a to b), with the pair's separation `s` along it, or `None` when the
+/// pair touches or overlaps. `s > alert` proves the pair is farther apart than the
+/// alert distance, `s > 0` that it is apart. `s` is measured with the support points
 /// themselves, so a GJK that did not converge cannot drop a contact.
 ///
 /// Why: the edge test tries only edges that come within the alert distance of the other
@@ -311,7 +311,7 @@ fn gjk_separation(
     a: &ConvexShape,
     b: &ConvexShape,
     alert: f64,
-) -> Option<Option<(f64, Vector3<f64>)>> {
+) -> Option<(f64, Vector3<f64>)> {
     use parry3d_f64::query::gjk::{self, CSOPoint, GJKResult, VoronoiSimplex};
     let start = Unit::try_new(pos12.translation.vector, 1e-12).unwrap_or(Vector3::x_axis());
     let mut simplex = VoronoiSimplex::new();
@@ -326,15 +326,8 @@ fn gjk_separation(
     match gjk::closest_points(pos12, a, b, alert, true, &mut simplex) {
         GJKResult::NoIntersection(n)
         | GJKResult::Proximity(n)
-        | GJKResult::ClosestPoints(_, _, n) => {
-            let s = along(&n);
-            if s > alert {
-                None
-            } else {
-                Some((s > 0.0).then_some((s, *n)))
-            }
-        }
-        GJKResult::Intersection => Some(None),
+        | GJKResult::ClosestPoints(_, _, n) => Some((along(&n), *n)),
+        GJKResult::Intersection => None,
     }
 }
 
@@ -956,6 +949,30 @@ mod tests {
         }
     }
 
+    /// Two random hulls (`count` points each on the ellipsoid of semi-axes `axes`),
+    /// their random orientations and a random direction, drawn in that order.
+    fn random_pair(
+        unit: &mut dyn FnMut() -> Vector3<f64>,
+        count: usize,
+        axes: Vector3<f64>,
+    ) -> (
+        ConvexShape,
+        ConvexShape,
+        [UnitQuaternion<f64>; 2],
+        Vector3<f64>,
+    ) {
+        let mut hull = || {
+            let points: Vec<Point3<f64>> = (0..count)
+                .map(|_| Point3::from(unit().component_mul(&axes)))
+                .collect();
+            ConvexShape::from_points(&points).unwrap()
+        };
+        let (a, b) = (hull(), hull());
+        let ra = UnitQuaternion::from_scaled_axis(unit() * 3.0);
+        let rb = UnitQuaternion::from_scaled_axis(unit() * 3.0);
+        (a, b, [ra, rb], unit())
+    }
+
     #[test]
     fn random_hulls_report_their_closest_or_deepest_point() {
         // Random stone-like hulls (20 points on an ellipsoid) at random orientations,
@@ -968,21 +985,8 @@ mod tests {
         let mut unit = unit_vectors(0x2545_f491_4f6c_dd1du64);
         let mut checked = 0;
         for _ in 0..200 {
-            let hull = |unit: &mut dyn FnMut() -> Vector3<f64>| {
-                let points: Vec<Point3<f64>> = (0..20)
-                    .map(|_| {
-                        let u = unit();
-                        Point3::new(0.03 * u.x, 0.02 * u.y, 0.015 * u.z)
-                    })
-                    .collect();
-                ConvexShape::from_points(&points).unwrap()
-            };
-            let (a, b) = (hull(&mut unit), hull(&mut unit));
-            let (ra, rb) = (
-                UnitQuaternion::from_scaled_axis(unit() * 3.0),
-                UnitQuaternion::from_scaled_axis(unit() * 3.0),
-            );
-            let direction = unit();
+            let (a, b, [ra, rb], direction) =
+                random_pair(&mut unit, 20, Vector3::new(0.03, 0.02, 0.015));
             let target = [-1e-3, -1e-5, 1e-5, 1e-3][checked % 4];
             let signed = |t: f64| {
                 let pos12 = Isometry3::from_parts(Translation3::identity(), ra).inverse()
@@ -1031,21 +1035,7 @@ mod tests {
         let mut unit = unit_vectors(0x9e37_79b9_7f4a_7c15u64);
         let alert = 2e-3;
         for trial in 0..3000 {
-            let hull = |unit: &mut dyn FnMut() -> Vector3<f64>| {
-                let points: Vec<Point3<f64>> = (0..10)
-                    .map(|_| {
-                        let u = unit();
-                        Point3::from(0.02 * u)
-                    })
-                    .collect();
-                ConvexShape::from_points(&points).unwrap()
-            };
-            let (a, b) = (hull(&mut unit), hull(&mut unit));
-            let (ra, rb) = (
-                UnitQuaternion::from_scaled_axis(unit() * 3.0),
-                UnitQuaternion::from_scaled_axis(unit() * 3.0),
-            );
-            let direction = unit();
+            let (a, b, [ra, rb], direction) = random_pair(&mut unit, 10, Vector3::repeat(0.02));
             let target = 2.5e-3 + 5.5e-3 * (trial % 8) as f64 / 7.0;
             let pose_b = |t: f64| Isometry3::from_parts(Translation3::from(direction * t), rb);
             let pose_a = Isometry3::from_parts(Translation3::identity(), ra);
