@@ -451,6 +451,20 @@ fn malformed_packings_give_one_line_errors() {
 /// the sleepers), with `sleepers` as its `[sleepers]` table (empty: none) and
 /// `compaction` as its `[compaction]` table; returns the work and output directories.
 fn small_box(depth: &str, sleepers: &str, compaction: &str) -> (tempfile::TempDir, PathBuf) {
+    let (work, path) = small_box_scene(depth, sleepers, compaction);
+    let out = work.path().join("out");
+    let output = Command::new(PACK)
+        .arg(&path)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert_success(&output);
+    (work, out)
+}
+
+/// The scene of [`small_box`], written in a new work directory.
+fn small_box_scene(depth: &str, sleepers: &str, compaction: &str) -> (tempfile::TempDir, PathBuf) {
     let work = tempfile::tempdir().unwrap();
     let base = std::fs::read_to_string(root().join("scenes/bed.toml")).unwrap();
     let stones = root().join("meshes/stones");
@@ -475,16 +489,14 @@ fn small_box(depth: &str, sleepers: &str, compaction: &str) -> (tempfile::TempDi
         );
     let path = work.path().join("box.toml");
     std::fs::write(&path, scene).unwrap();
-    let out = work.path().join("out");
-    let output = Command::new(PACK)
-        .arg(&path)
-        .arg("--out")
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert_success(&output);
-    (work, out)
+    (work, path)
 }
+
+/// The one-sleeper box with its layer compacted (every kind of stage).
+const BOX_SLEEPER: &str = "[sleepers]\ncount = 1\nspacing = \"0.3 m\"\n\
+    size = [\"0.1 m\", \"0.2 m\", \"0.06 m\"]\nembed = \"0.03 m\"\nmaterial = \"concrete\"\n\n";
+const BOX_LAYER_COMPACTION: &str =
+    "amplitude = \"1 mm\"\nfrequency = \"35 Hz\"\nduration = \"0.3 s\"\nstage = \"layer\"";
 
 #[test]
 fn a_vibrating_floor_compacts_a_plain_box_and_comes_back_to_rest() {
@@ -531,12 +543,7 @@ fn a_vibrating_floor_compacts_a_plain_box_and_comes_back_to_rest() {
 fn the_layer_is_compacted_before_the_sleeper_is_laid() {
     // `stage = "layer"` (the table3 and tamping7 presets): one sleeper in the box, the
     // floor vibrated between the under-sleeper layer and the lowering of the sleeper.
-    let (_work, out) = small_box(
-        "0.12 m",
-        "[sleepers]\ncount = 1\nspacing = \"0.3 m\"\nsize = [\"0.1 m\", \"0.2 m\", \"0.06 m\"]\n\
-         embed = \"0.03 m\"\nmaterial = \"concrete\"\n\n",
-        "amplitude = \"1 mm\"\nfrequency = \"35 Hz\"\nduration = \"0.3 s\"\nstage = \"layer\"",
-    );
+    let (_work, out) = small_box("0.12 m", BOX_SLEEPER, BOX_LAYER_COMPACTION);
     let f = figures(&out);
     let phases: Vec<&str> = f["phases"]
         .as_array()
@@ -814,4 +821,163 @@ fn a_killed_tamping_run_resumes_to_the_same_state() {
         .output()
         .unwrap();
     common::assert_one_line_error(&missing, 1, &["checkpoint.bin"]);
+}
+
+/// The files of a finished packing run that a resumed run must write identically.
+const PACK_FILES: [&str; 6] = [
+    "packing.toml",
+    "deposit.csv",
+    "bed.pvd",
+    "stones.vtu",
+    "sleepers.vtu",
+    "control_boxes.vtu",
+];
+
+fn assert_same_files(a: &Path, b: &Path) {
+    let frames = |dir: &Path| {
+        let mut names: Vec<String> = std::fs::read_dir(dir.join("frames"))
+            .unwrap()
+            .map(|e| format!("frames/{}", e.unwrap().file_name().to_string_lossy()))
+            .collect();
+        names.sort();
+        names
+    };
+    assert_eq!(frames(a), frames(b));
+    for file in PACK_FILES.iter().map(|f| f.to_string()).chain(frames(a)) {
+        let (x, y) = (
+            std::fs::read(a.join(&file)).unwrap(),
+            std::fs::read(b.join(&file)).unwrap(),
+        );
+        assert!(x == y, "{file} differs after the resume ({})", b.display());
+    }
+}
+
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for entry in std::fs::read_dir(from).unwrap() {
+        let entry = entry.unwrap();
+        let target = to.join(entry.file_name());
+        if entry.file_type().unwrap().is_dir() {
+            copy_dir(&entry.path(), &target);
+        } else {
+            std::fs::copy(entry.path(), target).unwrap();
+        }
+    }
+}
+
+/// A `ballast-pack` run killed at any checkpoint resumes (`--resume DIR`) to the
+/// uninterrupted run's files, bit for bit: the one-sleeper box with its layer
+/// compacted (every kind of stage: fills with their strike-offs, the vibrating floor,
+/// the sleeper lowered, the final settle), a checkpoint every 20 steps.
+/// - The uninterrupted run's checkpoints are collected as it writes them; the last of
+///   each part of each stage is put back into a copy of the finished directory (whose
+///   `deposit.csv` and `bed.pvd` run past it and must be cut back) and resumed.
+/// - The run resumed in the vibrating floor's part is killed by SIGKILL once it has
+///   written a checkpoint in the crib, and resumed again.
+#[cfg(unix)]
+#[test]
+fn a_killed_packing_resumes_to_the_same_bed_from_every_stage() {
+    use ballast::pack::resume::PackCheckpoint;
+    let (work, scene) = small_box_scene("0.12 m", BOX_SLEEPER, BOX_LAYER_COMPACTION);
+    let pack = |out: &Path, extra: &[&str]| {
+        let mut command = Command::new(PACK);
+        command
+            .arg(&scene)
+            .arg("--out")
+            .arg(out)
+            .args(["--set", "output.checkpoint_every=20"])
+            .args(extra)
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped());
+        command
+    };
+    let stage_of = |bytes: &[u8]| {
+        let c: PackCheckpoint = bincode::deserialize(bytes).unwrap();
+        (c.bed.cursor.stages_done, c.bed.cursor.part)
+    };
+    // Runs `command`, reading its checkpoints as they are written (by rename: a read
+    // gets the old file or the new one, whole), until it ends or `stop` says so.
+    let watch = |command: &mut Command, dir: &Path, stop: &dyn Fn(&[u8]) -> bool| {
+        let mut child = command
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap();
+        let mut saved: Vec<Vec<u8>> = Vec::new();
+        loop {
+            let status = child.try_wait().unwrap();
+            if let Ok(bytes) = std::fs::read(dir.join("checkpoint.bin")) {
+                if saved.last() != Some(&bytes) {
+                    if stop(&bytes) {
+                        child.kill().unwrap();
+                        child.wait().unwrap();
+                        return saved;
+                    }
+                    saved.push(bytes);
+                }
+            }
+            if let Some(status) = status {
+                assert!(status.success());
+                return saved;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(2));
+        }
+    };
+    let whole = work.path().join("whole");
+    let saved = watch(&mut pack(&whole, &[]), &whole, &|_| false);
+    // The last checkpoint of each (stage, part).
+    let mut parts: Vec<((usize, u8), Vec<u8>)> = Vec::new();
+    for bytes in saved {
+        let part = stage_of(&bytes);
+        match parts.iter_mut().find(|(p, _)| *p == part) {
+            Some(entry) => entry.1 = bytes,
+            None => parts.push((part, bytes)),
+        }
+    }
+    let found: Vec<(usize, u8)> = parts.iter().map(|(p, _)| *p).collect();
+    // Stages: 0 the layer (part 1: raining), 1 compaction (1: the vibrating floor, 2:
+    // settling), 2 lowering the sleeper, 3 the crib, 4 the final settle.
+    for part in [(0, 1), (1, 1), (1, 2), (2, 1), (3, 1)] {
+        assert!(
+            found.contains(&part),
+            "no checkpoint in {part:?}: {found:?}"
+        );
+    }
+    for ((stage, part), bytes) in &parts {
+        let dir = work.path().join(format!("resumed-{stage}-{part}"));
+        copy_dir(&whole, &dir);
+        for file in ["packing.toml", "summary.json", "stones.vtu"] {
+            std::fs::remove_file(dir.join(file)).unwrap();
+        }
+        let checkpoint = dir.join("checkpoint.bin");
+        std::fs::write(&checkpoint, bytes).unwrap();
+        let resume = |extra: &[&str]| {
+            let mut command = pack(&dir, extra);
+            command.args(["--resume", dir.to_str().unwrap()]);
+            command
+        };
+        if (*stage, *part) == (1, 1) {
+            watch(&mut resume(&[]), &dir, &|bytes| stage_of(bytes).0 >= 3);
+            assert!(!dir.join("packing.toml").exists(), "killed before the end");
+            // Other arguments, a damaged checkpoint or none are one-line errors.
+            let other = resume(&["--set", "deposit.tolerance=1e-3"])
+                .output()
+                .unwrap();
+            common::assert_one_line_error(&other, 1, &["checkpoint.bin", "another scene"]);
+            let good = std::fs::read(&checkpoint).unwrap();
+            std::fs::write(&checkpoint, b"not a checkpoint").unwrap();
+            common::assert_one_line_error(
+                &resume(&[]).output().unwrap(),
+                1,
+                &["checkpoint.bin", "not a ballast-pack checkpoint"],
+            );
+            std::fs::remove_file(&checkpoint).unwrap();
+            common::assert_one_line_error(&resume(&[]).output().unwrap(), 1, &["checkpoint.bin"]);
+            std::fs::write(&checkpoint, good).unwrap();
+        }
+        let resumed = resume(&[]).output().unwrap();
+        assert_success(&resumed);
+        assert!(String::from_utf8_lossy(&resumed.stdout).contains("resumed from"));
+        assert_same_files(&whole, &dir);
+    }
 }

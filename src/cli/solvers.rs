@@ -17,11 +17,16 @@ use std::path::PathBuf;
 pub struct PackCli {
     #[command(flatten)]
     run: RunArgs,
+    /// Continue a killed run from the checkpoint in its output directory DIR (give the
+    /// killed run's scene, --preset and --set again; implies --out DIR).
+    #[arg(long, value_name = "DIR")]
+    resume: Option<PathBuf>,
 }
 
 /// Runs `ballast-pack`.
 pub fn run_pack(cli: PackCli) -> crate::Result<()> {
-    cli.run.context()?.run_on_pool(crate::pack::run::run)?
+    let (ctx, resume) = cli.run.resumable_context(cli.resume.as_deref())?;
+    ctx.run_on_pool(|c| crate::pack::run::run(c, resume))?
 }
 
 /// `ballast-nscd`: non-smooth contact dynamics of rigid polyhedra.

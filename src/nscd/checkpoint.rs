@@ -39,6 +39,29 @@ pub struct BodyState {
     pub angular_velocity: [f64; 3],
 }
 
+impl BodyState {
+    /// The state of `body`.
+    pub fn of(body: &Body) -> Self {
+        let v = |v: &Vector3<f64>| [v.x, v.y, v.z];
+        let q = body.orientation.quaternion();
+        BodyState {
+            position: v(&body.position),
+            orientation: [q.w, q.i, q.j, q.k],
+            velocity: v(&body.velocity),
+            angular_velocity: v(&body.angular_velocity),
+        }
+    }
+
+    /// Puts this state into `body` (bit for bit).
+    pub fn apply(&self, body: &mut Body) {
+        let [w, x, y, z] = self.orientation;
+        body.position = Vector3::from(self.position);
+        body.orientation = UnitQuaternion::new_unchecked(Quaternion::new(w, x, y, z));
+        body.velocity = Vector3::from(self.velocity);
+        body.angular_velocity = Vector3::from(self.angular_velocity);
+    }
+}
+
 /// A run's state after a step.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Checkpoint<T> {
@@ -71,25 +94,13 @@ impl<T> Checkpoint<T> {
         memory: &ImpulseMemory,
         extra: T,
     ) -> Self {
-        let v = |v: &Vector3<f64>| [v.x, v.y, v.z];
         Checkpoint {
             format: CHECKPOINT_FORMAT.to_string(),
             scene,
             step,
             time,
             frames,
-            bodies: bodies
-                .iter()
-                .map(|b| {
-                    let q = b.orientation.quaternion();
-                    BodyState {
-                        position: v(&b.position),
-                        orientation: [q.w, q.i, q.j, q.k],
-                        velocity: v(&b.velocity),
-                        angular_velocity: v(&b.angular_velocity),
-                    }
-                })
-                .collect(),
+            bodies: bodies.iter().map(BodyState::of).collect(),
             memory: memory.entries(),
             extra,
         }
@@ -109,11 +120,7 @@ impl<T> Checkpoint<T> {
             ));
         }
         for (body, s) in bodies.iter_mut().zip(&self.bodies) {
-            let [w, x, y, z] = s.orientation;
-            body.position = Vector3::from(s.position);
-            body.orientation = UnitQuaternion::new_unchecked(Quaternion::new(w, x, y, z));
-            body.velocity = Vector3::from(s.velocity);
-            body.angular_velocity = Vector3::from(s.angular_velocity);
+            s.apply(body);
         }
         Ok(ImpulseMemory::from_entries(&self.memory))
     }

@@ -32,12 +32,24 @@
 //! A phase ends when the rms speed of the dynamic bodies, √(2 KE / Σm), is below the
 //! scene's `settle_speed` and no body point moves faster than four times that, or
 //! after `max_phase_time` (then reported as not settled).
+//!
+//! # Stages and resuming
+//! The run calls a fixed sequence of stages (each [`Deposition::fill`],
+//! [`Deposition::lower_sleepers`], [`Deposition::compact`], [`Deposition::settle`] is
+//! one), each made of parts: an instantaneous action (insert a column, place the
+//! sleepers, start the floor) or a loop of steps. A [`Cursor`] says how many stages are
+//! done, which part of the next one is under way and at which step its loop began. Its
+//! figures so far are in the cursor too. Between two steps of a loop the observer may
+//! save the bed ([`super::resume`]); a bed restored from it skips the stages done and
+//! re-enters the part under way, so the resumed run takes the same steps as the
+//! uninterrupted one.
 
 use std::collections::HashMap;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use nalgebra::{Isometry3, Point3, Translation3, Vector3};
+use serde::{Deserialize, Serialize};
 
 use super::profile::Profile;
 use crate::contact::ContactPoint;
@@ -76,7 +88,7 @@ pub fn bounds(points: &[Point3<f64>]) -> (Point3<f64>, Point3<f64>) {
 }
 
 /// What a body of the bed is.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Role {
     /// The floor (z = 0) or a wall.
     Boundary,
@@ -152,7 +164,7 @@ pub struct DepositSetup {
 }
 
 /// How one phase ended.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PhaseReport {
     /// Its name.
     pub name: String,
@@ -181,9 +193,37 @@ pub struct StepRecord<'a> {
     pub report: &'a StepReport,
 }
 
-/// What sees every step: its record, the bodies and their roles (CSV rows, frames,
-/// progress).
-pub type Observer<'o> = dyn FnMut(&StepRecord, &[Body], &[Role]) + 'o;
+/// What sees the deposition run: every step's record with the bodies and their roles
+/// (CSV rows, frames, progress), and the bed between two steps of a loop, where a
+/// checkpoint may be taken.
+pub trait Observer {
+    /// After every step.
+    fn step(&mut self, record: &StepRecord, bodies: &[Body], roles: &[Role]);
+
+    /// Between two steps of a stage's loop: a bed restored from `bed`'s
+    /// [`super::resume::DepositState`] continues from here.
+    fn between_steps(&mut self, _bed: &Deposition) {}
+}
+
+impl<F: FnMut(&StepRecord, &[Body], &[Role])> Observer for F {
+    fn step(&mut self, record: &StepRecord, bodies: &[Body], roles: &[Role]) {
+        self(record, bodies, roles);
+    }
+}
+
+/// Where the deposition stands in its sequence of stages (module doc, "Stages and
+/// resuming").
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Cursor {
+    /// Stages finished.
+    pub stages_done: usize,
+    /// The part of the next stage under way (0: its first).
+    pub part: u8,
+    /// The step at which that part began.
+    pub start_step: u64,
+    /// The stage's report so far.
+    pub report: Option<PhaseReport>,
+}
 
 /// The deposition in progress: bodies, their roles, the engine and the clock.
 pub struct Deposition {
@@ -207,14 +247,20 @@ pub struct Deposition {
     pub stepping: Duration,
     /// Phases done.
     pub phases: Vec<PhaseReport>,
-    engine: MoreauJean,
+    pub(super) engine: MoreauJean,
     /// Finishing (compaction, final settle): no drag, strict settling.
-    finishing: bool,
+    pub(super) finishing: bool,
     /// The floor is vibrating: no drag (it would damp the shaking).
-    vibrating: bool,
-    random: SplitMix,
+    pub(super) vibrating: bool,
+    pub(super) random: SplitMix,
     cell: f64,
-    inserted: usize,
+    /// Stones inserted so far (numbers the stones' names).
+    pub(super) inserted: usize,
+    /// Where the run stands.
+    pub(super) cursor: Cursor,
+    /// Stages called in this process (those up to `cursor.stages_done` were done
+    /// before a resume and are skipped).
+    calls: usize,
 }
 
 impl Deposition {
@@ -255,10 +301,12 @@ impl Deposition {
             vibrating: false,
             random,
             inserted: 0,
+            cursor: Cursor::default(),
+            calls: 0,
         }
     }
 
-    fn engine(setup: &DepositSetup) -> MoreauJean {
+    pub(super) fn engine(setup: &DepositSetup) -> MoreauJean {
         let mut engine = MoreauJean::new(
             setup.params,
             NlgsOptions {
@@ -309,7 +357,7 @@ impl Deposition {
         &mut self,
         friction_while_raining: bool,
         phase: &str,
-        observe: &mut Observer,
+        observe: &mut dyn Observer,
     ) -> StepReport {
         let friction = if friction_while_raining {
             &self.setup.rain_friction
@@ -342,7 +390,7 @@ impl Deposition {
             stones: self.stone_count(),
             report: &report,
         };
-        observe(&record, &self.bodies, &self.roles);
+        observe.step(&record, &self.bodies, &self.roles);
         report
     }
 
@@ -528,41 +576,85 @@ impl Deposition {
     /// Rains stones to fill the bed up to `level` (m) and lets them settle; then strikes
     /// off the stones whose centre is above `level` (or above the profile, where that is
     /// lower) and settles again. `bottom` is the level from which the new stones fill
-    /// (the free volume between `bottom` and that cap). `low_friction`: the raining friction table while it settles
-    /// (else the final one).
+    /// (the free volume between `bottom` and that cap). `low_friction`: the raining
+    /// friction table while it settles (else the final one). One stage: insert (part
+    /// 0), settle and strike off (1), settle again (2).
     pub fn fill(
         &mut self,
         name: &str,
         bottom: f64,
         level: f64,
         low_friction: bool,
-        observe: &mut Observer,
+        observe: &mut dyn Observer,
     ) {
-        let volume = self.free_volume(bottom, level);
-        let room = self.setup.max_stones.saturating_sub(self.stone_count());
-        let wanted =
-            ((FILL_FRACTION * volume / self.mean_stone_volume()).ceil() as usize).min(room);
-        let dt = self.setup.params.dt;
-        let start = self.time;
-        let inserted = self.insert_column(wanted);
-        let mut settled = self.settle_for(name, low_friction, observe);
-        let (time, steps) = (self.time - start, (self.time - start) / dt);
-        let removed = self.strike_off(level);
-        if removed > 0 {
+        if !self.begin_stage() {
+            return;
+        }
+        if self.cursor.part == 0 {
+            let volume = self.free_volume(bottom, level);
+            let room = self.setup.max_stones.saturating_sub(self.stone_count());
+            let wanted =
+                ((FILL_FRACTION * volume / self.mean_stone_volume()).ceil() as usize).min(room);
+            let inserted = self.insert_column(wanted);
+            self.cursor.report = Some(PhaseReport {
+                name: name.to_string(),
+                time: 0.0,
+                steps: 0,
+                settled: true,
+                inserted,
+                removed: 0,
+            });
+            self.enter_part(1);
+        }
+        if self.cursor.part == 1 {
+            let settled = self.settle_loop(name, low_friction, observe);
+            let (time, steps) = self.part_span();
+            let removed = self.strike_off(level);
+            let report = self.cursor.report.as_mut().expect("set in part 0");
+            (report.time, report.steps, report.settled) = (time, steps, settled);
+            report.removed = removed;
+            self.enter_part(if removed > 0 { 2 } else { 3 });
+        }
+        if self.cursor.part == 2 {
             // A profile's slopes are cut for the stones' own friction: at the raining
             // friction they would slump.
             let low = low_friction && self.setup.profile.is_none();
-            settled =
-                self.settle_for(&format!("{name} (after strike-off)"), low, observe) && settled;
+            let settled = self.settle_loop(&format!("{name} (after strike-off)"), low, observe);
+            self.cursor.report.as_mut().expect("set in part 0").settled &= settled;
         }
-        self.phases.push(PhaseReport {
-            name: name.to_string(),
-            time,
-            steps: steps.round() as u64,
-            settled,
-            inserted,
-            removed,
-        });
+        self.end_stage();
+    }
+
+    /// Whether the stage now called is still to run (else a resumed run did it before
+    /// the checkpoint).
+    fn begin_stage(&mut self) -> bool {
+        self.calls += 1;
+        self.calls > self.cursor.stages_done
+    }
+
+    /// Starts part `part` of the stage at the current step.
+    fn enter_part(&mut self, part: u8) {
+        self.cursor.part = part;
+        self.cursor.start_step = self.steps;
+    }
+
+    /// Simulated time and steps since the current part began.
+    fn part_span(&self) -> (f64, u64) {
+        let start = self.cursor.start_step as f64 * self.setup.params.dt;
+        (self.time - start, self.steps - self.cursor.start_step)
+    }
+
+    /// Ends the stage: its report joins the phases, and the next stage begins here.
+    fn end_stage(&mut self) {
+        if let Some(report) = self.cursor.report.take() {
+            self.phases.push(report);
+        }
+        self.cursor = Cursor {
+            stages_done: self.cursor.stages_done + 1,
+            part: 0,
+            start_step: self.steps,
+            report: None,
+        };
     }
 
     /// Removes the stones whose mass centre is above `level`, or above the profile
@@ -594,16 +686,38 @@ impl Deposition {
         removed
     }
 
-    /// Steps until settled or `max_phase_time`; true if settled.
-    fn settle_for(&mut self, name: &str, raining_friction: bool, observe: &mut Observer) -> bool {
-        let start = self.time;
+    /// Steps until settled or `max_phase_time` after the current part began; true if
+    /// settled. Between two steps the observer may take a checkpoint.
+    fn settle_loop(
+        &mut self,
+        name: &str,
+        raining_friction: bool,
+        observe: &mut dyn Observer,
+    ) -> bool {
+        let start = self.cursor.start_step as f64 * self.setup.params.dt;
         while self.time - start < self.setup.max_phase_time {
             let report = self.step(raining_friction, name, observe);
             if self.settled(&report) {
                 return true;
             }
+            observe.between_steps(self);
         }
         false
+    }
+
+    /// A part that lets the bed settle with the final friction table, as a phase of its
+    /// own (the stage's report).
+    fn settle_part(&mut self, name: &str, observe: &mut dyn Observer) {
+        let settled = self.settle_loop(name, false, observe);
+        let (time, steps) = self.part_span();
+        self.cursor.report = Some(PhaseReport {
+            name: name.to_string(),
+            time,
+            steps,
+            settled,
+            inserted: 0,
+            removed: 0,
+        });
     }
 
     /// Switches to the finishing rules (compaction, final settle): no drag, and a
@@ -612,28 +726,36 @@ impl Deposition {
         self.finishing = true;
     }
 
-    /// Lets the bed settle with the final friction table (a phase of its own).
-    pub fn settle(&mut self, name: &str, observe: &mut Observer) {
-        let start = self.time;
-        let settled = self.settle_for(name, false, observe);
-        self.phases.push(PhaseReport {
-            name: name.to_string(),
-            time: self.time - start,
-            steps: ((self.time - start) / self.setup.params.dt).round() as u64,
-            settled,
-            inserted: 0,
-            removed: 0,
-        });
+    /// Lets the bed settle with the final friction table (a stage and phase of its
+    /// own).
+    pub fn settle(&mut self, name: &str, observe: &mut dyn Observer) {
+        if self.begin_stage() {
+            self.settle_part(name, observe);
+            self.end_stage();
+        }
     }
 
     /// Lowers the sleepers onto the bed: each is placed at its nominal (x, y), level,
     /// 1 mm above the highest stone under its footprint, and released (a dynamic body
-    /// under gravity); the bed then settles under their weight.
+    /// under gravity); the bed then settles under their weight (part 1).
     pub fn lower_sleepers(
         &mut self,
         sleepers: &[(SleeperModel, [f64; 2])],
-        observe: &mut Observer,
+        observe: &mut dyn Observer,
     ) {
+        if !self.begin_stage() {
+            return;
+        }
+        if self.cursor.part == 0 {
+            self.place_sleepers(sleepers);
+            self.enter_part(1);
+        }
+        self.settle_part("lower sleepers", observe);
+        self.end_stage();
+    }
+
+    /// Places the sleepers (see [`Self::lower_sleepers`]).
+    fn place_sleepers(&mut self, sleepers: &[(SleeperModel, [f64; 2])]) {
         for (k, (model, [x, y])) in sleepers.iter().enumerate() {
             let [fx, fy] = model.footprint;
             let mut highest: f64 = 0.0;
@@ -667,20 +789,22 @@ impl Deposition {
             self.bodies.push(body);
             self.roles.push(Role::Sleeper(k));
         }
-        self.settle("lower sleepers", observe);
     }
 
     /// Vibrates the floor vertically (`A sin 2πft`, whole cycles, the frequency
     /// adjusted so that they are whole steps too, so the floor ends where it started up
-    /// to round-off), without drag and with the final friction table, then lets the
-    /// bed settle with the floor at rest.
+    /// to round-off), without drag and with the final friction table (part 1), then
+    /// lets the bed settle with the floor at rest (part 2).
     pub fn compact(
         &mut self,
         amplitude: f64,
         frequency: f64,
         duration: f64,
-        observe: &mut Observer,
+        observe: &mut dyn Observer,
     ) {
+        if !self.begin_stage() {
+            return;
+        }
         let cycles = (duration * frequency).round().max(1.0);
         let dt = self.setup.params.dt;
         let steps = (cycles / frequency / dt).round().max(1.0) as u64;
@@ -690,32 +814,40 @@ impl Deposition {
         // amplitude off its rest level (43 µm for 1 mm at 35 Hz), and a packing read
         // back with the floor at 0 would start with every stone above it.
         let frequency = cycles / (steps as f64 * dt);
-        let start = self.time;
         let motion = Prescribed {
             velocity: Vector3::zeros(),
             amplitude: Vector3::new(0.0, 0.0, amplitude),
             frequency,
             table: None,
         };
-        // Body 0 is the floor (see `new`).
-        self.bodies[0].velocity = motion.velocity_at(self.time);
-        self.bodies[0].motion = Motion::Driven(motion);
-        self.vibrating = true;
-        for _ in 0..steps {
-            self.step(false, "compaction", observe);
+        if self.cursor.part == 0 {
+            // Body 0 is the floor (see `new`); a resumed part 1 has its velocity.
+            self.bodies[0].velocity = motion.velocity_at(self.time);
+            self.enter_part(1);
         }
-        self.vibrating = false;
-        self.bodies[0].motion = Motion::Static;
-        self.bodies[0].velocity = Vector3::zeros();
-        self.phases.push(PhaseReport {
-            name: "compaction".into(),
-            time: self.time - start,
-            steps,
-            settled: true,
-            inserted: 0,
-            removed: 0,
-        });
-        self.settle("settle after compaction", observe);
+        if self.cursor.part == 1 {
+            self.bodies[0].motion = Motion::Driven(motion);
+            self.vibrating = true;
+            while self.steps - self.cursor.start_step < steps {
+                self.step(false, "compaction", observe);
+                observe.between_steps(self);
+            }
+            self.vibrating = false;
+            self.bodies[0].motion = Motion::Static;
+            self.bodies[0].velocity = Vector3::zeros();
+            let (time, _) = self.part_span();
+            self.phases.push(PhaseReport {
+                name: "compaction".into(),
+                time,
+                steps,
+                settled: true,
+                inserted: 0,
+                removed: 0,
+            });
+            self.enter_part(2);
+        }
+        self.settle_part("settle after compaction", observe);
+        self.end_stage();
     }
 
     /// The floor's height after compaction (m; 0 without it).

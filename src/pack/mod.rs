@@ -9,12 +9,16 @@
 //!   coordination number, interpenetration;
 //! - [`profile`]: the track-bed cross-section (crest, shoulders, slopes);
 //! - [`packing`]: the packing file the solvers read;
+//! - [`recorder`]: what the run writes as it goes (CSV, frames, checkpoints);
+//! - [`resume`]: checkpoints, and the bed restored from one (`--resume DIR`);
 //! - [`run`]: `ballast-pack SCENE.toml` (files and summary).
 
 pub mod deposit;
 pub mod packing;
 pub mod profile;
+pub mod recorder;
 pub mod report;
+pub mod resume;
 pub mod run;
 pub mod scene;
 

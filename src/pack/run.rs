@@ -9,23 +9,26 @@
 //! - `deposit.csv`: per step, phase, stones, contacts, NLGS sweeps and error, kinetic
 //!   energy, interpenetration;
 //! - `summary.json`: grains, d50, compactness per control box, interpenetration,
-//!   coordination number, phases, wall times, grains·steps per second.
+//!   coordination number, phases, wall times, grains·steps per second;
+//! - `checkpoint.bin` every `output.checkpoint_every` steps, from which
+//!   `ballast-pack … --resume DIR` continues a killed run ([`super::resume`]).
 
 use std::path::Path;
 use std::sync::Arc;
 use std::time::Instant;
 
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use serde_json::json;
 
 use super::deposit::{bounds, DepositSetup, Deposition, Observer, Role, SleeperModel};
 use super::packing::{PackedMesh, Packing, Placement, PACKING_FORMAT};
 use super::profile::Profile;
+use super::recorder::{CheckpointPlan, Recorder};
 use super::report::{
     compactness, control_boxes, coordination_numbers, interpenetration, median, stones_outside,
     Compactness,
 };
+use super::resume::{restore_from, PackCheckpoint};
 use super::scene::{BedScene, CompactionStage};
 use crate::ddm::Partitioning;
 use crate::geometry::{ControlBox, Period};
@@ -34,7 +37,7 @@ use crate::nscd::motion::{mesh_pieces, Pieces};
 use crate::nscd::run::grains_grid;
 use crate::nscd::scene::{read_stone_shapes, NscdScene, StoneShape};
 use crate::nscd::step::{FrictionTable, StepParams};
-use crate::output::{write_json, write_vtu, CsvSeries, Grid, PvdWriter};
+use crate::output::{write_json, write_vtu, Grid, CHECKPOINT_FILE};
 use crate::scene::{PhaseTimer, RunContext, Summary};
 use crate::{Error, Result};
 
@@ -192,11 +195,20 @@ fn friction_tables(scene: &BedScene) -> (FrictionTable, FrictionTable) {
     (table, raining)
 }
 
-/// Runs the scene of `ctx`.
-pub fn run(ctx: &RunContext) -> Result<()> {
+/// Runs the scene of `ctx`; with `resume`, from the checkpoint in the output directory
+/// (written by a run of the same scene, preset and overrides).
+pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
     let threads = ctx.configure_threads()?;
     let mut timer = PhaseTimer::new();
     let (scene, inputs): (BedScene, _) = timer.time("read scene", || ctx.load_scene())?;
+    let scene_text = toml::to_string(&inputs)
+        .map_err(|e| Error::Message(format!("cannot write the merged scene: {e}")))?;
+    let checkpoint_path = ctx.out_dir.join(CHECKPOINT_FILE);
+    let resumed = if resume {
+        Some(PackCheckpoint::read(&checkpoint_path, &scene_text)?)
+    } else {
+        None
+    };
     let directory = NscdScene::resolve(&ctx.scene_path, &scene.stones.directory);
     let family = timer.time("read stones", || {
         read_stone_shapes(&directory, scene.stones.scale)
@@ -304,7 +316,20 @@ pub fn run(ctx: &RunContext) -> Result<()> {
         ddm,
         profile,
     };
-    let mut bed = Deposition::new(setup);
+    let placed: Vec<(SleeperModel, [f64; 2])> = match &sleeper {
+        Some(source) => nominal
+            .iter()
+            .map(|xy| (source.model.clone(), *xy))
+            .collect(),
+        None => Vec::new(),
+    };
+    let mut bed = match &resumed {
+        Some(c) => {
+            let models: Vec<SleeperModel> = placed.iter().map(|(m, _)| m.clone()).collect();
+            restore_from(&checkpoint_path, setup, &c.bed, &models)?
+        }
+        None => Deposition::new(setup),
+    };
     std::fs::create_dir_all(ctx.out_dir.join("frames")).map_err(|e| Error::io(&ctx.out_dir, e))?;
     println!(
         "ballast-pack: {} — bed {:.3} × {:.3} m, {} stone shapes (largest {:.1} mm across), {} sleepers, \
@@ -318,106 +343,52 @@ pub fn run(ctx: &RunContext) -> Result<()> {
         scene.seed,
     );
 
-    let mut csv = CsvSeries::create(
-        ctx.out_dir.join("deposit.csv"),
-        &[
-            "time_s",
-            "phase",
-            "stones",
-            "contacts",
-            "nlgs_sweeps",
-            "nlgs_error",
-            "kinetic_energy_J",
-            "max_interpenetration_m",
-        ],
+    let mut recorder = Recorder::open(
+        &ctx.out_dir,
+        scene.output.frame_interval.si(),
+        CheckpointPlan {
+            path: checkpoint_path.clone(),
+            every: scene.output.checkpoint_every,
+            scene: scene_text,
+        },
+        resumed.as_ref(),
     )?;
-    let mut pvd = PvdWriter::create(ctx.out_dir.join("bed.pvd"))?;
-    let frame_interval = scene.output.frame_interval.si();
-    let mut next_frame = 0.0;
-    let mut frames = 0usize;
-    let mut phase_names: Vec<String> = Vec::new();
-    let mut failure: Option<Error> = None;
-    let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::stderr_with_hz(4));
-    bar.set_style(
-        ProgressStyle::with_template("{spinner} {elapsed} {msg}").expect("valid template"),
-    );
-    let clock = Instant::now();
-    let mut observe = |record: &super::deposit::StepRecord, bodies: &[Body], roles: &[Role]| {
-        if failure.is_some() {
-            return;
-        }
-        let phase = match phase_names.iter().position(|p| p == record.phase) {
-            Some(k) => k,
-            None => {
-                phase_names.push(record.phase.to_string());
-                phase_names.len() - 1
-            }
-        };
-        let r = record.report;
-        let row = [
-            record.time,
-            phase as f64,
-            record.stones as f64,
-            r.contacts as f64,
-            r.nlgs.iterations as f64,
-            r.nlgs.error,
-            r.kinetic_energy,
-            r.max_interpenetration,
-        ];
-        if let Err(e) = csv.push(&row) {
-            failure = Some(e);
-            return;
-        }
-        if frame_interval > 0.0 && record.time >= next_frame {
-            next_frame = record.time + frame_interval;
-            let name = format!("frames/bed_{frames:04}.vtu");
-            let grid = bed_grid(bodies, roles);
-            if let Err(e) = grid.and_then(|g| pvd.write_frame(record.time, &name, &g)) {
-                failure = Some(e);
-                return;
-            }
-            frames += 1;
-        }
-        bar.set_message(format!(
-            "{}: t = {:.2} s, {} stones, KE {:.2e} J, {} contacts",
-            record.phase, record.time, record.stones, r.kinetic_energy, r.contacts
-        ));
-        bar.tick();
-    };
+    if let Some(c) = &resumed {
+        println!(
+            "ballast-pack: resumed from {} at step {} (t = {:.4} s)",
+            checkpoint_path.display(),
+            c.bed.steps,
+            c.bed.time
+        );
+    }
 
-    let compact = |bed: &mut Deposition, observe: &mut Observer| {
+    let compact = |bed: &mut Deposition, observe: &mut dyn Observer| {
         if let Some(c) = &scene.compaction {
             bed.compact(c.amplitude.si(), c.frequency.si(), c.duration.si(), observe);
         }
     };
     let stage = scene.compaction.as_ref().map(|c| c.stage);
-    match &sleeper {
-        Some(source) => {
-            bed.fill("under-sleeper layer", 0.0, depth, true, &mut observe);
-            if stage == Some(CompactionStage::Layer) {
-                compact(&mut bed, &mut observe);
-            }
-            let placed: Vec<(SleeperModel, [f64; 2])> = nominal
-                .iter()
-                .map(|xy| (source.model.clone(), *xy))
-                .collect();
-            bed.lower_sleepers(&placed, &mut observe);
-            bed.fill("crib", depth, crib_top, true, &mut observe);
+    // The stages; a resumed bed skips those done before its checkpoint.
+    let observe = &mut recorder;
+    if sleeper.is_some() {
+        bed.fill("under-sleeper layer", 0.0, depth, true, observe);
+        if stage == Some(CompactionStage::Layer) {
+            compact(&mut bed, observe);
         }
-        None => bed.fill("bed", 0.0, depth, true, &mut observe),
+        bed.lower_sleepers(&placed, observe);
+        bed.fill("crib", depth, crib_top, true, observe);
+    } else {
+        bed.fill("bed", 0.0, depth, true, observe);
     }
     // Compaction of the finished bed and the final settle run under gravity and
     // contact alone, and the final state has no body moving.
     bed.finish();
     if stage == Some(CompactionStage::Bed) || (sleeper.is_none() && stage.is_some()) {
-        compact(&mut bed, &mut observe);
+        compact(&mut bed, observe);
     }
-    bed.settle("final settle", &mut observe);
-    bar.finish_and_clear();
-    if let Some(e) = failure {
-        return Err(e);
-    }
-    let wall_deposit = clock.elapsed();
+    bed.settle("final settle", observe);
+    recorder.finish()?;
+    let wall_deposit = recorder.wall();
     for (name, t) in ["detect", "build", "solve", "update"]
         .iter()
         .zip(bed.phase_times)
@@ -428,7 +399,8 @@ pub fn run(ctx: &RunContext) -> Result<()> {
         timer.add("solve: subdomains (parallel)", bed.solve_split[0]);
         timer.add("solve: interface (sequential)", bed.solve_split[1]);
     }
-    let other = wall_deposit.saturating_sub(bed.stepping);
+    timer.add("checkpoints", recorder.checkpoint_time);
+    let other = wall_deposit.saturating_sub(bed.stepping + recorder.checkpoint_time);
     timer.add("frames and csv", other);
 
     // Measures of the final bed.
@@ -549,8 +521,7 @@ pub fn run(ctx: &RunContext) -> Result<()> {
         )?;
     }
     write_vtu(ctx.out_dir.join("control_boxes.vtu"), &boxes_grid(&solid)?)?;
-    let name = format!("frames/bed_{frames:04}.vtu");
-    pvd.write_frame(bed.time, &name, &bed_grid(&bed.bodies, &bed.roles)?)?;
+    recorder.last_frame(bed.time, &bed.bodies, &bed.roles)?;
     timer.add("output", clock.elapsed());
 
     let stepping = bed.stepping.as_secs_f64();
@@ -650,24 +621,6 @@ fn split(bodies: &[Body], roles: &[Role]) -> (Vec<Body>, Vec<Body>) {
         pick(|r| matches!(r, Role::Stone(_))),
         pick(|r| matches!(r, Role::Sleeper(_))),
     )
-}
-
-/// Stones and sleepers in one grid, cell field `sleeper` (1 on sleepers).
-fn bed_grid(bodies: &[Body], roles: &[Role]) -> Result<Grid> {
-    let mut grid = grains_grid(bodies, true, &[])?;
-    let kinds: Vec<i32> = bodies
-        .iter()
-        .zip(roles)
-        .filter(|(b, _)| b.is_dynamic())
-        .flat_map(|(b, r)| {
-            std::iter::repeat_n(
-                i32::from(matches!(r, Role::Sleeper(_))),
-                b.shape.triangles.len(),
-            )
-        })
-        .collect();
-    grid.add_cell_field("sleeper", 1, kinds)?;
-    Ok(grid)
 }
 
 /// The control boxes as closed triangulated surfaces with their compactness.

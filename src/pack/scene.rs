@@ -55,6 +55,7 @@
 //! [[material]] / [[friction]]           # as in ballast-nscd scenes
 //! [output]
 //! frame_interval = "0.1 s"              # VTK frames of the deposition (0: none)
+//! checkpoint_every = 200                # steps between checkpoints (0: none)
 //! ```
 
 use std::path::PathBuf;
@@ -254,6 +255,14 @@ pub struct OutputSpec {
     /// state is always written).
     #[serde(default = "default_frame_interval")]
     pub frame_interval: Time,
+    /// A checkpoint every this many steps, from which `--resume` continues a killed run
+    /// ([`super::resume`]); 0 for none.
+    #[serde(default = "default_checkpoint_every")]
+    pub checkpoint_every: u64,
+}
+
+fn default_checkpoint_every() -> u64 {
+    200
 }
 
 fn default_frame_interval() -> Time {
@@ -264,6 +273,7 @@ impl Default for OutputSpec {
     fn default() -> Self {
         OutputSpec {
             frame_interval: default_frame_interval(),
+            checkpoint_every: default_checkpoint_every(),
         }
     }
 }

@@ -1,0 +1,208 @@
+//! What `ballast-pack` writes while the bed builds: a `deposit.csv` row every step, the
+//! VTK frames of `bed.pvd`, the progress line, and a checkpoint every
+//! `output.checkpoint_every` steps ([`super::resume`]). A resumed run reopens the
+//! killed run's `deposit.csv` and `bed.pvd` cut back to the checkpoint's time, so the
+//! finished files are the uninterrupted run's.
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+
+use super::deposit::{Deposition, Observer, Role, StepRecord};
+use super::resume::{PackCheckpoint, PACK_CHECKPOINT_FORMAT};
+use crate::nscd::body::Body;
+use crate::nscd::run::grains_grid;
+use crate::output::{CsvSeries, Grid, PvdWriter};
+use crate::{Error, Result};
+
+/// Columns of `deposit.csv`.
+const COLUMNS: [&str; 8] = [
+    "time_s",
+    "phase",
+    "stones",
+    "contacts",
+    "nlgs_sweeps",
+    "nlgs_error",
+    "kinetic_energy_J",
+    "max_interpenetration_m",
+];
+
+/// When and where checkpoints go.
+#[derive(Debug, Clone)]
+pub struct CheckpointPlan {
+    /// `checkpoint.bin` in the output directory.
+    pub path: PathBuf,
+    /// Every this many steps (0: never).
+    pub every: u64,
+    /// The merged scene text the checkpoint is tied to.
+    pub scene: String,
+}
+
+/// The deposition's files as it runs (an [`Observer`]).
+pub struct Recorder {
+    csv: CsvSeries,
+    pvd: PvdWriter,
+    frame_interval: f64,
+    next_frame: f64,
+    /// Frames written.
+    pub frames: usize,
+    phase_names: Vec<String>,
+    /// The first error met (a file that could not be written); the run stops on it.
+    pub failure: Option<Error>,
+    bar: ProgressBar,
+    checkpoints: CheckpointPlan,
+    /// Wall time of the runs before a resume.
+    wall_before: Duration,
+    clock: Instant,
+    /// Wall time spent writing checkpoints.
+    pub checkpoint_time: Duration,
+}
+
+impl Recorder {
+    /// New files in `dir`, or (`resumed`) the killed run's files cut back to the
+    /// checkpoint, with its counters.
+    pub fn open(
+        dir: &Path,
+        frame_interval: f64,
+        checkpoints: CheckpointPlan,
+        resumed: Option<&PackCheckpoint>,
+    ) -> Result<Self> {
+        let csv_path = dir.join("deposit.csv");
+        let pvd_path = dir.join("bed.pvd");
+        let (csv, pvd) = match resumed {
+            Some(c) => (
+                CsvSeries::open_existing(csv_path, &COLUMNS, c.bed.time)?,
+                PvdWriter::open_existing(pvd_path, c.bed.time)?,
+            ),
+            None => (
+                CsvSeries::create(csv_path, &COLUMNS)?,
+                PvdWriter::create(pvd_path)?,
+            ),
+        };
+        let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::stderr_with_hz(4));
+        bar.set_style(
+            ProgressStyle::with_template("{spinner} {elapsed} {msg}").expect("valid template"),
+        );
+        Ok(Recorder {
+            csv,
+            pvd,
+            frame_interval,
+            next_frame: resumed.map_or(0.0, |c| c.next_frame),
+            frames: resumed.map_or(0, |c| c.frames),
+            phase_names: resumed.map_or_else(Vec::new, |c| c.phase_names.clone()),
+            failure: None,
+            bar,
+            checkpoints,
+            wall_before: Duration::from_secs_f64(resumed.map_or(0.0, |c| c.wall_s)),
+            clock: Instant::now(),
+            checkpoint_time: Duration::ZERO,
+        })
+    }
+
+    /// Wall time of the deposition so far, the runs before a resume included.
+    pub fn wall(&self) -> Duration {
+        self.wall_before + self.clock.elapsed()
+    }
+
+    /// Clears the progress line; the first error met, if any.
+    pub fn finish(&mut self) -> Result<()> {
+        self.bar.finish_and_clear();
+        self.failure.take().map_or(Ok(()), Err)
+    }
+
+    /// Writes the last frame (the final bed) at `time`.
+    pub fn last_frame(&mut self, time: f64, bodies: &[Body], roles: &[Role]) -> Result<()> {
+        let name = format!("frames/bed_{:04}.vtu", self.frames);
+        self.pvd.write_frame(time, &name, &bed_grid(bodies, roles)?)
+    }
+
+    fn checkpoint(&mut self, bed: &Deposition) -> Result<()> {
+        let clock = Instant::now();
+        PackCheckpoint {
+            format: PACK_CHECKPOINT_FORMAT.to_string(),
+            scene: self.checkpoints.scene.clone(),
+            bed: bed.state(),
+            frames: self.frames,
+            next_frame: self.next_frame,
+            phase_names: self.phase_names.clone(),
+            wall_s: self.wall().as_secs_f64(),
+        }
+        .write(&self.checkpoints.path)?;
+        self.checkpoint_time += clock.elapsed();
+        Ok(())
+    }
+}
+
+impl Observer for Recorder {
+    fn step(&mut self, record: &StepRecord, bodies: &[Body], roles: &[Role]) {
+        if self.failure.is_some() {
+            return;
+        }
+        let phase = match self.phase_names.iter().position(|p| p == record.phase) {
+            Some(k) => k,
+            None => {
+                self.phase_names.push(record.phase.to_string());
+                self.phase_names.len() - 1
+            }
+        };
+        let r = record.report;
+        let row = [
+            record.time,
+            phase as f64,
+            record.stones as f64,
+            r.contacts as f64,
+            r.nlgs.iterations as f64,
+            r.nlgs.error,
+            r.kinetic_energy,
+            r.max_interpenetration,
+        ];
+        if let Err(e) = self.csv.push(&row) {
+            self.failure = Some(e);
+            return;
+        }
+        if self.frame_interval > 0.0 && record.time >= self.next_frame {
+            self.next_frame = record.time + self.frame_interval;
+            let name = format!("frames/bed_{:04}.vtu", self.frames);
+            let grid = bed_grid(bodies, roles);
+            if let Err(e) = grid.and_then(|g| self.pvd.write_frame(record.time, &name, &g)) {
+                self.failure = Some(e);
+                return;
+            }
+            self.frames += 1;
+        }
+        self.bar.set_message(format!(
+            "{}: t = {:.2} s, {} stones, KE {:.2e} J, {} contacts",
+            record.phase, record.time, record.stones, r.kinetic_energy, r.contacts
+        ));
+        self.bar.tick();
+    }
+
+    fn between_steps(&mut self, bed: &Deposition) {
+        let every = self.checkpoints.every;
+        if self.failure.is_some() || every == 0 || bed.steps % every != 0 {
+            return;
+        }
+        if let Err(e) = self.checkpoint(bed) {
+            self.failure = Some(e);
+        }
+    }
+}
+
+/// Stones and sleepers in one grid, cell field `sleeper` (1 on sleepers).
+pub fn bed_grid(bodies: &[Body], roles: &[Role]) -> Result<Grid> {
+    let mut grid = grains_grid(bodies, true, &[])?;
+    let kinds: Vec<i32> = bodies
+        .iter()
+        .zip(roles)
+        .filter(|(b, _)| b.is_dynamic())
+        .flat_map(|(b, r)| {
+            std::iter::repeat_n(
+                i32::from(matches!(r, Role::Sleeper(_))),
+                b.shape.triangles.len(),
+            )
+        })
+        .collect();
+    grid.add_cell_field("sleeper", 1, kinds)?;
+    Ok(grid)
+}
