@@ -25,7 +25,13 @@ $(PACK_PERIODIC_CHART): tools/pack_report.py $(PACK_PERIODIC) | $(VENV_STAMP)
 	$(PY) $< chart $(dir $(PACK_PERIODIC)) $@
 
 ## The seed-sized beds (hours each on 2 cores): `make pack-presets`, not part of tests.
+## A bed whose run was killed (a checkpoint and no summary) resumes where it stopped:
+## `make results/bed-impact/summary.json` again continues it.
 pack-presets: $(PACK_PRESETS:%=results/bed-%/summary.json) | $(VENV_STAMP)
 	$(PY) tools/pack_report.py table $(PACK_QUICK:%/summary.json=%) $(^:%/summary.json=%)
 results/bed-%/summary.json: scenes/bed.toml $(STONE_MESHES) meshes/sleeper_type3.msh | $(RELEASE)/ballast-pack
-	$(RELEASE)/ballast-pack $< --preset $* --out $(@D)
+	if [ -f $(@D)/checkpoint.bin ] && [ ! -f $@ ]; then \
+	    $(RELEASE)/ballast-pack $< --preset $* --resume $(@D); \
+	else \
+	    $(RELEASE)/ballast-pack $< --preset $* --out $(@D); \
+	fi
