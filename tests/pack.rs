@@ -23,14 +23,10 @@ fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
-/// Runs the quick preset on `threads` threads, with `extra` arguments, into a
-/// directory kept for the whole test run, and returns it.
-fn quick_run(threads: usize, extra: &[&str]) -> PathBuf {
-    let dir = tempfile::Builder::new()
-        .prefix(&format!("bed-quick-{threads}-"))
-        .tempdir()
-        .unwrap()
-        .keep();
+/// Runs the quick preset on `threads` threads, with `extra` arguments, into the
+/// shared directory `name` (replaced every test run), and returns it.
+fn quick_run(name: &str, threads: usize, extra: &[&str]) -> PathBuf {
+    let dir = common::shared_dir(name);
     let output = Command::new(PACK)
         .arg(root().join("scenes/bed.toml"))
         .args([
@@ -55,7 +51,7 @@ fn quick_run(threads: usize, extra: &[&str]) -> PathBuf {
 /// The 2-thread quick run, made once for every test that reads it.
 fn quick() -> &'static Path {
     static RUN: OnceLock<PathBuf> = OnceLock::new();
-    RUN.get_or_init(|| quick_run(2, &[]))
+    RUN.get_or_init(|| quick_run("bed-quick", 2, &[]))
 }
 
 fn figures(dir: &Path) -> Value {
@@ -202,7 +198,10 @@ fn the_same_seed_gives_the_same_packing_on_one_and_two_threads() {
         "--set",
         "deposit.max_phase_time=\"1 s\"",
     ];
-    let (one, two) = (quick_run(1, &small), quick_run(2, &small));
+    let (one, two) = (
+        quick_run("bed-small-1-thread", 1, &small),
+        quick_run("bed-small-2-threads", 2, &small),
+    );
     let a = std::fs::read(one.join("packing.toml")).unwrap();
     let b = std::fs::read(two.join("packing.toml")).unwrap();
     // The synchronous DDM (one slab per sleeper) runs the subdomains in parallel: the

@@ -28,15 +28,11 @@ fn ok(output: Output, what: &str) -> Output {
     output
 }
 
-/// The quick bed and the train load, made once (kept for the whole test run).
+/// The quick bed and the train load, made once (in `target/tmp`, replaced every test run).
 fn inputs() -> &'static (PathBuf, PathBuf) {
     static INPUTS: OnceLock<(PathBuf, PathBuf)> = OnceLock::new();
     INPUTS.get_or_init(|| {
-        let dir = tempfile::Builder::new()
-            .prefix("track-inputs-")
-            .tempdir()
-            .unwrap()
-            .keep();
+        let dir = common::shared_dir("track-inputs");
         ok(
             Command::new(PACK)
                 .arg(root().join("scenes/bed.toml"))
@@ -94,11 +90,7 @@ fn qdem(out: &Path, extra: &[String]) -> Command {
 fn quick() -> &'static Path {
     static RUN: OnceLock<PathBuf> = OnceLock::new();
     RUN.get_or_init(|| {
-        let dir = tempfile::Builder::new()
-            .prefix("track-quick-")
-            .tempdir()
-            .unwrap()
-            .keep();
+        let dir = common::shared_dir("track-quick");
         ok(
             qdem(&dir, &[]).output().unwrap(),
             "ballast-qdem track quick",

@@ -6,6 +6,18 @@ use std::process::{Command, Output};
 
 use serde_json::Value;
 
+/// An empty directory `name` under Cargo's scratch directory for integration tests
+/// (`target/tmp`), for outputs several tests read: each test run replaces the last
+/// one's, where a kept temporary directory would leave one more in /tmp every run.
+pub fn shared_dir(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
+    if dir.exists() {
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
 /// The venv's Python: `BALLAST_PYTHON`, else `.venv/bin/python` in the crate root.
 pub fn python() -> PathBuf {
     let python = match std::env::var_os("BALLAST_PYTHON") {
