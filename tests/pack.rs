@@ -566,6 +566,23 @@ fn the_layer_is_compacted_before_the_sleeper_is_laid() {
     assert_eq!(figure(&f, "sleepers"), 1.0);
     assert_eq!(figure(&f, "stones_outside"), 0.0);
     assert!(figure(&f, "max_interpenetration_over_d50") < 1e-3);
+    // The NLGS sweep cap: `max_sweeps` (100) while the drag is on, `finish_sweeps`
+    // (500 by default) in the final settle, the last phase of deposit.csv; on this bed
+    // the solve stops on the cap at some steps of each.
+    let csv = std::fs::read_to_string(out.join("deposit.csv")).unwrap();
+    let rows: Vec<Vec<f64>> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect();
+    let last = rows.last().unwrap()[1];
+    let cap = |finishing: bool| {
+        rows.iter()
+            .filter(|r| (r[1] == last) == finishing)
+            .map(|r| r[4])
+            .fold(0.0, f64::max)
+    };
+    assert_eq!((cap(false), cap(true)), (100.0, 500.0));
 }
 
 #[test]

@@ -139,6 +139,9 @@ pub struct DepositSetup {
     pub tolerance: f64,
     /// Sweep cap.
     pub max_sweeps: usize,
+    /// Sweep cap once finishing ([`Deposition::finish`]): without the drag an
+    /// unconverged solve feeds the bed energy.
+    pub finish_sweeps: usize,
     /// Friction table after raining.
     pub friction: FrictionTable,
     /// Friction while raining (stone/stone pairs lowered).
@@ -282,7 +285,7 @@ impl Deposition {
             .iter()
             .map(StoneShape::radius)
             .fold(0.0, f64::max);
-        let engine = Self::engine(&setup);
+        let engine = Self::engine(&setup, false);
         let random = SplitMix(setup.seed);
         Deposition {
             cell: 2.02 * radius,
@@ -306,14 +309,12 @@ impl Deposition {
         }
     }
 
-    pub(super) fn engine(setup: &DepositSetup) -> MoreauJean {
+    /// The engine, with the sweep cap of the finishing phases if `finishing`.
+    pub(super) fn engine(setup: &DepositSetup, finishing: bool) -> MoreauJean {
         let mut engine = MoreauJean::new(
             setup.params,
             NlgsOptions {
-                stopping: Stopping::Tolerance {
-                    tolerance: setup.tolerance,
-                    max_sweeps: setup.max_sweeps,
-                },
+                stopping: Self::stopping(setup, finishing),
                 // The full measure costs about a sweep: every tenth sweep, or when the
                 // impulse change alone says converged.
                 error_check: ErrorCheck::Light { every: 10 },
@@ -681,7 +682,7 @@ impl Deposition {
         });
         let removed = before - self.bodies.len();
         if removed > 0 {
-            self.engine = Self::engine(&self.setup);
+            self.engine = Self::engine(&self.setup, self.finishing);
         }
         removed
     }
@@ -720,10 +721,23 @@ impl Deposition {
         });
     }
 
-    /// Switches to the finishing rules (compaction, final settle): no drag, and a
-    /// phase settles only when no body point is fast either.
+    /// Switches to the finishing rules (compaction, final settle): no drag, the sweep
+    /// cap `finish_sweeps`, and a phase settles only when no body point is fast either.
     pub fn finish(&mut self) {
         self.finishing = true;
+        self.engine.options.stopping = Self::stopping(&self.setup, true);
+    }
+
+    /// The NLGS stopping rule: the tolerance, and the sweep cap of the phase.
+    pub(super) fn stopping(setup: &DepositSetup, finishing: bool) -> Stopping {
+        Stopping::Tolerance {
+            tolerance: setup.tolerance,
+            max_sweeps: if finishing {
+                setup.finish_sweeps
+            } else {
+                setup.max_sweeps
+            },
+        }
     }
 
     /// Lets the bed settle with the final friction table (a stage and phase of its

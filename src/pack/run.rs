@@ -303,6 +303,7 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
         },
         tolerance: d.tolerance,
         max_sweeps: d.max_sweeps,
+        finish_sweeps: d.finish_sweeps,
         friction,
         rain_friction,
         settle_speed: d.settle_speed.si(),

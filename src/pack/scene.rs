@@ -32,6 +32,7 @@
 //! theta = 1.0
 //! tolerance = 1e-4                      # NLGS
 //! max_sweeps = 300
+//! finish_sweeps = 500                   # cap once the drag is off (final settle)
 //! alert_distance = "2 mm"
 //! depenetration_speed = "2 mm/s"        # overlaps of unconverged steps pushed out
 //! end_checks = 2                        # re-solve a step whose motion cuts unseen features
@@ -188,6 +189,11 @@ pub struct DepositSpec {
     pub tolerance: f64,
     /// NLGS sweep cap.
     pub max_sweeps: usize,
+    /// NLGS sweep cap of the finishing phases (compaction of the finished bed, final
+    /// settle), which run without drag: there an unconverged solve feeds energy into
+    /// the bed that the drag no longer takes out (docs/pack.md, "Final settle").
+    #[serde(default = "default_finish_sweeps")]
+    pub finish_sweeps: usize,
     /// Alert distance of the contact detection.
     pub alert_distance: Length,
     /// Speed at which the engine pushes existing overlaps out (unconverged steps under
@@ -259,6 +265,11 @@ pub struct OutputSpec {
     /// ([`super::resume`]); 0 for none.
     #[serde(default = "default_checkpoint_every")]
     pub checkpoint_every: u64,
+}
+
+/// The seed's n_DDM for its Table 3 case (seed 000 §4.2).
+fn default_finish_sweeps() -> usize {
+    500
 }
 
 fn default_checkpoint_every() -> u64 {
@@ -442,6 +453,11 @@ impl Validate for BedScene {
             "must be a positive number",
         );
         v.check("deposit.max_sweeps", d.max_sweeps > 0, "must be at least 1");
+        v.check(
+            "deposit.finish_sweeps",
+            d.finish_sweeps > 0,
+            "must be at least 1",
+        );
         v.non_negative("deposit.alert_distance", d.alert_distance);
         if let Some(speed) = d.depenetration_speed {
             v.non_negative("deposit.depenetration_speed", speed);
