@@ -15,6 +15,16 @@
       2 %; the seed: 1.7 %). With --repeat R the versions run R times in turn and
       every wall time is the median of its R runs (the runs of one version give the
       same results, bit for bit).
+  tamping_report.py ensemble --pack BIN --nscd BIN --seeds N --out DIR
+      the asynchronous driver against the synchronous one over N quick beds (seeds 1
+      to N of `ballast-pack --preset quick`): each bed is tamped with both drivers
+      (the quick tamping preset, 2 threads), and the table gives per bed the
+      compactness under the tamped sleeper before, after and over the squeeze, with
+      the relative difference after; then the two drivers' means over the beds, and
+      the mean, standard deviation and standard error of the paired differences. One
+      cycle on a small bed is chaotic (the order of the contact updates changes the
+      outcome), so issue #7's "within 2 %" is a statement about these means. Beds and
+      runs already in DIR (with their summary.json) are reused.
 """
 
 import csv
@@ -212,6 +222,61 @@ def bench(nscd, preset, steps, out, repeat=1):
           % (100 * diff))
 
 
+def ensemble(pack, nscd, seeds, out):
+    os.makedirs(out, exist_ok=True)
+    drivers = ("synchronous", "asynchronous")
+    rows = []
+    for seed in range(1, seeds + 1):
+        bed = os.path.join(out, "bed-%d" % seed)
+        if not os.path.exists(os.path.join(bed, "summary.json")):
+            print("tamping_report: packing the quick bed of seed %d" % seed, file=sys.stderr, flush=True)
+            subprocess.run([pack, "scenes/bed.toml", "--preset", "quick", "--set", "seed=%d" % seed,
+                            "--set", "output.frame_interval=0", "--set", "output.checkpoint_every=0",
+                            "--threads", "2", "--out", bed],
+                           check=True, stdout=subprocess.DEVNULL)
+        packing = os.path.abspath(os.path.join(bed, "packing.toml"))
+        with open(os.path.join(bed, "summary.json")) as f:
+            bed_figures = json.load(f)["figures"]
+        figures = {}
+        for driver in drivers:
+            d = os.path.join(out, "tamping-%d-%s" % (seed, driver))
+            if not os.path.exists(os.path.join(d, "summary.json")):
+                print("tamping_report: seed %d, %s" % (seed, driver), file=sys.stderr, flush=True)
+                subprocess.run([nscd, SCENE, "--preset", "quick", "--threads", "2",
+                                "--set", "packing.file=%s" % json.dumps(packing),
+                                "--set", "ddm.driver=\"%s\"" % driver,
+                                "--set", "output.frames=0", "--set", "output.checkpoint_every=0",
+                                "--out", d],
+                               check=True, stdout=subprocess.DEVNULL)
+            with open(os.path.join(d, "summary.json")) as f:
+                figures[driver] = json.load(f)["figures"]
+        rows.append((seed, bed_figures, figures))
+    print("\n## Asynchronous against synchronous DDM over %d quick beds (one tamping cycle each)\n" % seeds)
+    print("| bed seed | stones | before | after: sync / async | async − sync | squeeze: sync | squeeze: async | largest overlap during the run: sync / async (mm) |")
+    print("|---|---|---|---|---|---|---|---|")
+    diffs = []
+    for seed, bed, f in rows:
+        a, b = f["synchronous"], f["asynchronous"]
+        diff = (b["compactness_after"] - a["compactness_after"]) / a["compactness_after"]
+        diffs.append(diff)
+        squeeze = [x["compactness_squeeze"][0] if x["compactness_squeeze"] else {"start": float("nan"), "end": float("nan")} for x in (a, b)]
+        print("| %d | %d | %.4f | %.4f / %.4f | %+.1f %% | %.3f → %.3f | %.3f → %.3f | %.1f / %.1f |"
+              % (seed, bed["grains"], a["compactness_before"], a["compactness_after"], b["compactness_after"],
+                 100 * diff, squeeze[0]["start"], squeeze[0]["end"], squeeze[1]["start"], squeeze[1]["end"],
+                 1e3 * a["max_interpenetration_m"], 1e3 * b["max_interpenetration_m"]))
+    after = {d: [f[d]["compactness_after"] for _, _, f in rows] for d in drivers}
+    mean = {d: statistics.mean(after[d]) for d in drivers}
+    spread = {d: statistics.stdev(after[d]) if len(rows) > 1 else float("nan") for d in drivers}
+    print("\nmean compactness after: synchronous %.4f (sd %.4f), asynchronous %.4f (sd %.4f): %+.2f %%"
+          % (mean["synchronous"], spread["synchronous"], mean["asynchronous"], spread["asynchronous"],
+             100 * (mean["asynchronous"] - mean["synchronous"]) / mean["synchronous"]))
+    if len(diffs) > 1:
+        sd = statistics.stdev(diffs)
+        print("paired differences: mean %+.2f %%, sd %.2f %%, standard error %.2f %% over %d beds "
+              "(issue #7: within 2 %%; seed 000: 1.7 %%)"
+              % (100 * statistics.mean(diffs), 100 * sd, 100 * sd / len(diffs) ** 0.5, len(diffs)))
+
+
 def main(argv):
     if len(argv) == 3 and argv[0] == "chart":
         chart(argv[1], argv[2])
@@ -220,6 +285,11 @@ def main(argv):
         opts = dict(zip(argv[1::2], argv[2::2]))
         bench(opts["--nscd"], opts.get("--preset", "table3"), int(opts.get("--steps", "2272")),
               opts.get("--out", "results/bench-tamping"), int(opts.get("--repeat", "1")))
+        return 0
+    if argv and argv[0] == "ensemble":
+        opts = dict(zip(argv[1::2], argv[2::2]))
+        ensemble(opts["--pack"], opts["--nscd"], int(opts.get("--seeds", "6")),
+                 opts.get("--out", "results/tamping-ensemble"))
         return 0
     print(__doc__, file=sys.stderr)
     return 2
