@@ -997,3 +997,49 @@ fn a_killed_packing_resumes_to_the_same_bed_from_every_stage() {
         assert_same_files(&whole, &dir);
     }
 }
+
+/// A checkpoint whose bodies the scene can no longer build (the stone meshes changed
+/// since the killed run) is a one-line error naming the file.
+#[cfg(unix)]
+#[test]
+fn a_checkpoint_of_other_stone_meshes_is_a_one_line_error() {
+    let (work, scene) = small_box_scene("0.12 m", BOX_SLEEPER, BOX_LAYER_COMPACTION);
+    // The scene reads a copy of the stone family, which the test then cuts down.
+    let stones = work.path().join("stones");
+    copy_dir(&root().join("meshes/stones"), &stones);
+    let text = std::fs::read_to_string(&scene).unwrap().replace(
+        &format!("{:?}", root().join("meshes/stones")),
+        &format!("{stones:?}"),
+    );
+    std::fs::write(&scene, text).unwrap();
+    let out = work.path().join("out");
+    let pack = || {
+        let mut command = Command::new(PACK);
+        command
+            .arg(&scene)
+            .args(["--set", "output.checkpoint_every=20", "--out"])
+            .arg(&out);
+        command
+    };
+    let mut child = common::spawn_until_checkpoint(
+        &mut pack(),
+        &out.join("checkpoint.bin"),
+        std::time::Duration::ZERO,
+    );
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let mut meshes: Vec<PathBuf> = std::fs::read_dir(&stones)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    meshes.sort();
+    for mesh in &meshes[2..] {
+        std::fs::remove_file(mesh).unwrap();
+    }
+    let resumed = pack().arg("--resume").arg(&out).output().unwrap();
+    common::assert_one_line_error(
+        &resumed,
+        1,
+        &["checkpoint.bin", "stones.directory holds 2 shapes now"],
+    );
+}

@@ -155,7 +155,9 @@ impl Deposition {
                 Role::Stone(f) => {
                     let stone = bed.setup.family.get(f).ok_or_else(|| {
                         format!(
-                            "the checkpoint has stone shape {f}, the family {}",
+                            "the checkpoint has a stone of shape {} but stones.directory holds \
+                             {} shapes now (the stone meshes changed since the killed run)",
+                            f + 1,
                             bed.setup.family.len()
                         )
                     })?;
