@@ -46,10 +46,11 @@ pub struct Recorder {
     frame_interval: f64,
     next_frame: f64,
     /// Frames written.
-    pub frames: usize,
+    frames: usize,
     phase_names: Vec<String>,
-    /// The first error met (a file that could not be written); the run stops on it.
-    pub failure: Option<Error>,
+    /// The first error met (a file that could not be written): nothing more is
+    /// written, and [`Self::finish`] returns it.
+    failure: Option<Error>,
     bar: ProgressBar,
     checkpoints: CheckpointPlan,
     /// Wall time of the runs before a resume.
@@ -111,10 +112,13 @@ impl Recorder {
         self.failure.take().map_or(Ok(()), Err)
     }
 
-    /// Writes the last frame (the final bed) at `time`.
-    pub fn last_frame(&mut self, time: f64, bodies: &[Body], roles: &[Role]) -> Result<()> {
+    /// Writes the next frame, `frames/bed_NNNN.vtu`, at `time` (the final bed too).
+    pub fn frame(&mut self, time: f64, bodies: &[Body], roles: &[Role]) -> Result<()> {
         let name = format!("frames/bed_{:04}.vtu", self.frames);
-        self.pvd.write_frame(time, &name, &bed_grid(bodies, roles)?)
+        self.pvd
+            .write_frame(time, &name, &bed_grid(bodies, roles)?)?;
+        self.frames += 1;
+        Ok(())
     }
 
     fn checkpoint(&mut self, bed: &Deposition) -> Result<()> {
@@ -163,13 +167,10 @@ impl Observer for Recorder {
         }
         if self.frame_interval > 0.0 && record.time >= self.next_frame {
             self.next_frame = record.time + self.frame_interval;
-            let name = format!("frames/bed_{:04}.vtu", self.frames);
-            let grid = bed_grid(bodies, roles);
-            if let Err(e) = grid.and_then(|g| self.pvd.write_frame(record.time, &name, &g)) {
+            if let Err(e) = self.frame(record.time, bodies, roles) {
                 self.failure = Some(e);
                 return;
             }
-            self.frames += 1;
         }
         self.bar.set_message(format!(
             "{}: t = {:.2} s, {} stones, KE {:.2e} J, {} contacts",

@@ -522,7 +522,7 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
         )?;
     }
     write_vtu(ctx.out_dir.join("control_boxes.vtu"), &boxes_grid(&solid)?)?;
-    recorder.last_frame(bed.time, &bed.bodies, &bed.roles)?;
+    recorder.frame(bed.time, &bed.bodies, &bed.roles)?;
     timer.add("output", clock.elapsed());
 
     let stepping = bed.stepping.as_secs_f64();
