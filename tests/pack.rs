@@ -1043,3 +1043,37 @@ fn a_checkpoint_of_other_stone_meshes_is_a_one_line_error() {
         &["checkpoint.bin", "stones.directory holds 2 shapes now"],
     );
 }
+
+/// A frame that cannot be written stops the deposition at that step: one line naming
+/// the file, exit status 1, no packing or summary. Before, the error came after the
+/// whole run (17 s for the 0.12 m box here; this 0.25 m box takes longer), so the time
+/// is checked too.
+#[test]
+fn a_frame_that_cannot_be_written_stops_the_run_at_once() {
+    let (work, scene) = small_box_scene("0.25 m", BOX_SLEEPER, BOX_LAYER_COMPACTION);
+    let out = work.path().join("out");
+    // Frames every 5 steps (2 ms each); the second frame's path is taken by a directory.
+    std::fs::create_dir_all(out.join("frames/bed_0001.vtu")).unwrap();
+    let clock = std::time::Instant::now();
+    let output = Command::new(PACK)
+        .arg(&scene)
+        .args(["--set", "output.frame_interval=\"10 ms\"", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let wall = clock.elapsed().as_secs_f64();
+    assert!(
+        wall < 5.0,
+        "the run went on for {wall:.1} s after the failure"
+    );
+    common::assert_one_line_failure(&output, 1, &["bed_0001.vtu"]);
+    for file in ["packing.toml", "summary.json", "stones.vtu"] {
+        assert!(!out.join(file).exists(), "{file} written after the failure");
+    }
+    // Rows of deposit.csv: the header and the steps up to the failed frame (step 5 or 6).
+    let rows = std::fs::read_to_string(out.join("deposit.csv"))
+        .unwrap()
+        .lines()
+        .count();
+    assert!((6..=8).contains(&rows), "{rows} lines in deposit.csv");
+}

@@ -206,6 +206,12 @@ pub trait Observer {
     /// Between two steps of a stage's loop: a bed restored from `bed`'s
     /// [`super::resume::DepositState`] continues from here.
     fn between_steps(&mut self, _bed: &Deposition) {}
+
+    /// True once the run should stop (an output could not be written): the
+    /// deposition takes no further step, and each stage left returns at once.
+    fn stop(&self) -> bool {
+        false
+    }
 }
 
 impl<F: FnMut(&StepRecord, &[Body], &[Role])> Observer for F {
@@ -264,6 +270,8 @@ pub struct Deposition {
     /// Stages called in this process (those up to `cursor.stages_done` were done
     /// before a resume and are skipped).
     calls: usize,
+    /// The observer asked to stop ([`Observer::stop`]): no further step is taken.
+    stopped: bool,
 }
 
 impl Deposition {
@@ -306,6 +314,7 @@ impl Deposition {
             inserted: 0,
             cursor: Cursor::default(),
             calls: 0,
+            stopped: false,
         }
     }
 
@@ -392,7 +401,18 @@ impl Deposition {
             report: &report,
         };
         observe.step(&record, &self.bodies, &self.roles);
+        self.stopped |= observe.stop();
         report
+    }
+
+    /// Hands the bed to the observer between two steps of a loop; false when the run
+    /// is to stop.
+    fn between_steps(&mut self, observe: &mut dyn Observer) -> bool {
+        if !self.stopped {
+            observe.between_steps(self);
+            self.stopped |= observe.stop();
+        }
+        !self.stopped
     }
 
     /// Whether the bed has settled: the rms speed below `settle_speed`, and once
@@ -627,10 +647,10 @@ impl Deposition {
     }
 
     /// Whether the stage now called is still to run (else a resumed run did it before
-    /// the checkpoint).
+    /// the checkpoint, or the run is stopping).
     fn begin_stage(&mut self) -> bool {
         self.calls += 1;
-        self.calls > self.cursor.stages_done
+        self.calls > self.cursor.stages_done && !self.stopped
     }
 
     /// Starts part `part` of the stage at the current step.
@@ -696,12 +716,14 @@ impl Deposition {
         observe: &mut dyn Observer,
     ) -> bool {
         let start = self.cursor.start_step as f64 * self.setup.params.dt;
-        while self.time - start < self.setup.max_phase_time {
+        while !self.stopped && self.time - start < self.setup.max_phase_time {
             let report = self.step(raining_friction, name, observe);
             if self.settled(&report) {
                 return true;
             }
-            observe.between_steps(self);
+            if !self.between_steps(observe) {
+                break;
+            }
         }
         false
     }
@@ -844,7 +866,9 @@ impl Deposition {
             self.vibrating = true;
             while self.steps - self.cursor.start_step < steps {
                 self.step(false, "compaction", observe);
-                observe.between_steps(self);
+                if !self.between_steps(observe) {
+                    return;
+                }
             }
             self.vibrating = false;
             self.bodies[0].motion = Motion::Static;

@@ -49,7 +49,8 @@ pub struct Recorder {
     frames: usize,
     phase_names: Vec<String>,
     /// The first error met (a file that could not be written): nothing more is
-    /// written, and [`Self::finish`] returns it.
+    /// written, the deposition stops ([`Observer::stop`]), and [`Self::finish`]
+    /// returns it.
     failure: Option<Error>,
     bar: ProgressBar,
     checkpoints: CheckpointPlan,
@@ -187,6 +188,10 @@ impl Observer for Recorder {
         if let Err(e) = self.checkpoint(bed) {
             self.failure = Some(e);
         }
+    }
+
+    fn stop(&self) -> bool {
+        self.failure.is_some()
     }
 }
 

@@ -53,6 +53,14 @@ pub fn read_with_vtk(files: &[PathBuf]) -> Value {
 /// Asserts a failed run: the given exit status, exactly one line on stderr that names
 /// every `needle`, no panic, and nothing on stdout.
 pub fn assert_one_line_error(output: &Output, status: i32, needles: &[&str]) -> String {
+    let stderr = assert_one_line_failure(output, status, needles);
+    assert!(output.stdout.is_empty(), "unexpected stdout on error");
+    stderr
+}
+
+/// [`assert_one_line_error`] for a run that failed after it had started (and printed
+/// its progress on stdout).
+pub fn assert_one_line_failure(output: &Output, status: i32, needles: &[&str]) -> String {
     let stderr = String::from_utf8_lossy(&output.stderr).to_string();
     assert_eq!(output.status.code(), Some(status), "stderr: {stderr}");
     assert_eq!(
@@ -64,7 +72,6 @@ pub fn assert_one_line_error(output: &Output, status: i32, needles: &[&str]) -> 
     for needle in needles {
         assert!(stderr.contains(needle), "{needle:?} not in: {stderr}");
     }
-    assert!(output.stdout.is_empty(), "unexpected stdout on error");
     stderr
 }
 
