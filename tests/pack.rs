@@ -1077,3 +1077,54 @@ fn a_frame_that_cannot_be_written_stops_the_run_at_once() {
         .count();
     assert!((6..=8).contains(&rows), "{rows} lines in deposit.csv");
 }
+
+/// A resumed run may shorten `deposit.max_phase_time` (a run-control key, like
+/// `output.checkpoint_every`): every phase from the checkpoint on ends by the new cap,
+/// reported as not settled, and the bed is written. Other keys stay refused.
+#[test]
+fn a_resumed_run_may_shorten_the_phase_cap() {
+    let (work, scene) = small_box_scene("0.12 m", BOX_SLEEPER, BOX_LAYER_COMPACTION);
+    let out = work.path().join("out");
+    let pack = |extra: &[&str]| {
+        let mut command = Command::new(PACK);
+        command
+            .arg(&scene)
+            .args(["--set", "output.checkpoint_every=20", "--out"])
+            .arg(&out)
+            .args(extra);
+        command
+    };
+    let mut child = common::spawn_until_checkpoint(
+        &mut pack(&[]),
+        &out.join("checkpoint.bin"),
+        std::time::Duration::ZERO,
+    );
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let resume = ["--resume", out.to_str().unwrap()];
+    let refused = pack(&resume)
+        .args(["--set", "deposit.settle_speed=\"1 mm/s\""])
+        .output()
+        .unwrap();
+    common::assert_one_line_error(&refused, 1, &["checkpoint.bin", "another scene"]);
+    let cap = 0.5;
+    let resumed = pack(&resume)
+        .args(["--set", &format!("deposit.max_phase_time=\"{cap} s\"")])
+        .output()
+        .unwrap();
+    assert_success(&resumed);
+    let stdout = String::from_utf8_lossy(&resumed.stdout);
+    assert!(stdout.contains("resumed from"), "{stdout}");
+    let summary: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    let phases = summary["figures"]["phases"].as_array().expect("phases");
+    assert!(!phases.is_empty());
+    for p in phases {
+        let time = p["time_s"].as_f64().unwrap();
+        assert!(time <= cap + 1e-9, "phase over the new cap: {p}");
+    }
+    // The layer settles in 1.5 s uncapped (40 ms in at the checkpoint); 0.5 s cuts it.
+    assert_eq!(phases[0]["settled"], Value::Bool(false), "{phases:?}");
+    assert!(stdout.contains("NOT SETTLED"), "{stdout}");
+    assert!(out.join("packing.toml").exists());
+}

@@ -36,6 +36,17 @@ pub fn write_checkpoint<T: Serialize>(path: &Path, record: &T) -> Result<()> {
 /// Reads a checkpoint written by [`write_checkpoint`], checking that its tag is
 /// `format` and that it was written for `scene` (the merged scene text).
 pub fn read_checkpoint<T: DeserializeOwned>(path: &Path, format: &str, scene: &str) -> Result<T> {
+    read_checkpoint_matching(path, format, |saved| saved == scene)
+}
+
+/// [`read_checkpoint`] with the scene test given: `matches(saved)` says whether the
+/// saved merged scene text is one the current run may continue (a tool that lets a
+/// resumed run change a run-control key compares the scenes without it).
+pub fn read_checkpoint_matching<T: DeserializeOwned>(
+    path: &Path,
+    format: &str,
+    matches: impl Fn(&str) -> bool,
+) -> Result<T> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     let not_ours = |e: &dyn std::fmt::Display| {
         Error::invalid(path, format!("not a {format} file of this version ({e})"))
@@ -48,7 +59,7 @@ pub fn read_checkpoint<T: DeserializeOwned>(path: &Path, format: &str, scene: &s
             format!("format \"{}\", expected \"{format}\"", header.format),
         ));
     }
-    if header.scene != scene {
+    if !matches(&header.scene) {
         return Err(Error::invalid(
             path,
             "was written for another scene, preset or --set (resume with the same \

@@ -27,7 +27,9 @@ pub mod pvd;
 pub mod vtu;
 
 pub use atomic::{write_atomic, AtomicFile};
-pub use checkpoint::{read_checkpoint, write_checkpoint, CHECKPOINT_FILE};
+pub use checkpoint::{
+    read_checkpoint, read_checkpoint_matching, write_checkpoint, CHECKPOINT_FILE,
+};
 pub use csv::CsvSeries;
 pub use grid::{points_from_nalgebra, CellKind, Field, FieldValues, Grid};
 pub use json::write_json;

@@ -98,10 +98,36 @@ impl PackCheckpoint {
         crate::output::write_checkpoint(path, self)
     }
 
-    /// Reads a checkpoint and checks it was written for `scene` (the merged scene text).
+    /// Reads a checkpoint and checks it was written for `scene` (the merged scene
+    /// text), up to the [`RUN_CONTROL_KEYS`].
     pub fn read(path: &Path, scene: &str) -> Result<Self> {
-        crate::output::read_checkpoint(path, PACK_CHECKPOINT_FORMAT, scene)
+        let current = without_run_control(scene);
+        crate::output::read_checkpoint_matching(path, PACK_CHECKPOINT_FORMAT, |saved| {
+            current.is_some() && without_run_control(saved) == current
+        })
     }
+}
+
+/// Keys of the merged scene that a resumed run may change: they say how long a phase
+/// may run and how often a checkpoint is taken, not what the bed is. A packing whose
+/// final settle sits at the solver's noise floor can so be resumed with a shorter
+/// `deposit.max_phase_time`: it ends at that time, reported as not settled. (Changing
+/// them makes the resumed run differ from an uninterrupted one with the old values.)
+pub const RUN_CONTROL_KEYS: [(&str, &str); 2] = [
+    ("deposit", "max_phase_time"),
+    ("output", "checkpoint_every"),
+];
+
+/// The merged scene text parsed, without the [`RUN_CONTROL_KEYS`]; `None` when it is
+/// not TOML.
+fn without_run_control(scene: &str) -> Option<toml::Table> {
+    let mut table: toml::Table = scene.parse().ok()?;
+    for (section, key) in RUN_CONTROL_KEYS {
+        if let Some(toml::Value::Table(t)) = table.get_mut(section) {
+            t.remove(key);
+        }
+    }
+    Some(table)
 }
 
 impl Deposition {
