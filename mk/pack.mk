@@ -35,3 +35,5 @@ results/bed-%/summary.json: scenes/bed.toml $(STONE_MESHES) meshes/sleeper_type3
 	else \
 	    $(RELEASE)/ballast-pack $< --preset $* --out $(@D); \
 	fi
+# The packing comes with the summary (the same run writes both).
+results/bed-%/packing.toml: results/bed-%/summary.json ;

@@ -45,16 +45,29 @@ $(TRACK_STUDY)/friction.md: $(TRACK_MU:%=$(TRACK_STUDY)/mu-%/summary.json) | $(R
 $(TRACK_STUDY)/stones.md: $(TRACK_STONES:%=$(TRACK_STUDY)/stones-%/summary.json) | $(RELEASE)/ballast-post
 	$(RELEASE)/ballast-post track-compare $(TRACK_STONES:%=$(TRACK_STUDY)/stones-%) --out $(@:.md=)
 
+## The paper preset's load: the whole train of `ballast-post train-load`'s defaults
+## (five cars at 115 km/h).
+TRACK_PAPER_LOAD := results/train-load/train_load.csv
+$(TRACK_PAPER_LOAD): mk/track.mk | $(RELEASE)/ballast-post
+	$(RELEASE)/ballast-post train-load --out $@
+
 ## Throughput of the track scene (part of `make bench`): 20 ms of the quick preset on 1
 ## and 2 threads (the files must agree: spectrum difference 0), with peak memory.
 ## TRACK_BENCH_PRESET=paper benchmarks the paper bed (needs results/bed-impact:
-## `ballast-pack scenes/bed.toml --preset impact`, hours).
+## `make results/bed-impact/summary.json`, hours); there a step costs ≈ 20 × the quick
+## one, so TRACK_BENCH_SETTLE and TRACK_BENCH_DURATION (the scene's settle, 20 ms, and
+## 20 ms by default) shorten it, e.g. TRACK_BENCH_SETTLE="2 ms" TRACK_BENCH_DURATION="2 ms".
 TRACK_BENCH_PRESET ?= quick
+TRACK_BENCH_DURATION ?= 20 ms
+TRACK_BENCH_SETTLE ?=
 TRACK_BENCH := results/bench-track-$(TRACK_BENCH_PRESET)
+TRACK_BENCH_INPUTS := $(if $(filter paper,$(TRACK_BENCH_PRESET)),results/bed-impact/packing.toml $(TRACK_PAPER_LOAD),$(TRACK_BED) $(TRACK_LOAD))
 bench: bench-track
-bench-track: scenes/track_impact.toml $(TRACK_BED) $(TRACK_LOAD) | $(RELEASE)/ballast-qdem $(RELEASE)/ballast-post
+bench-track: scenes/track_impact.toml $(TRACK_BENCH_INPUTS) | $(RELEASE)/ballast-qdem $(RELEASE)/ballast-post
 	for t in 1 2; do \
 	  $(RELEASE)/ballast-qdem $< --preset $(TRACK_BENCH_PRESET) --threads $$t \
-	    --set 'track.duration="20 ms"' --set track.frames=1 --out $(TRACK_BENCH)/threads-$$t || exit 1; \
+	    --set 'track.duration="$(TRACK_BENCH_DURATION)"' --set track.frames=1 \
+	    $(if $(TRACK_BENCH_SETTLE),--set 'track.settle="$(TRACK_BENCH_SETTLE)"') \
+	    --out $(TRACK_BENCH)/threads-$$t || exit 1; \
 	done
 	$(RELEASE)/ballast-post track-compare $(TRACK_BENCH)/threads-1 $(TRACK_BENCH)/threads-2 --out $(TRACK_BENCH)/bench
