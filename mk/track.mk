@@ -51,6 +51,24 @@ TRACK_PAPER_LOAD := results/train-load/train_load.csv
 $(TRACK_PAPER_LOAD): mk/track.mk | $(RELEASE)/ballast-post
 	$(RELEASE)/ballast-post train-load --out $@
 
+## The first bogie (the quick load, 0.2 s) on the paper bed (`make track-paper-bogie`):
+## seed 004's bed and time step (≈ 0.1 µs) with rigid stones, ≈ 2 M steps, hours on 2
+## cores; a killed run (a checkpoint and no summary) resumes where it stopped. Its
+## spectra go to results/track_impact_paper_bogie*.
+TRACK_PAPER_BOGIE := results/track_impact-paper-bogie/summary.json
+TRACK_PAPER_BOGIE_ARGS := --preset paper --set 'track.loads="../$(TRACK_LOAD)"' \
+  --set 'track.duration="0.2 s"'
+.PHONY: track-paper-bogie
+track-paper-bogie: results/track_impact_paper_bogie.json
+$(TRACK_PAPER_BOGIE): scenes/track_impact.toml results/bed-impact/packing.toml $(TRACK_LOAD) | $(RELEASE)/ballast-qdem
+	if [ -f $(@D)/checkpoint.bin ] && [ ! -f $@ ]; then \
+	    $(RELEASE)/ballast-qdem $< $(TRACK_PAPER_BOGIE_ARGS) --resume $(@D); \
+	else \
+	    $(RELEASE)/ballast-qdem $< $(TRACK_PAPER_BOGIE_ARGS) --out $(@D); \
+	fi
+results/track_impact_paper_bogie.json: $(TRACK_PAPER_BOGIE) | $(RELEASE)/ballast-post
+	$(RELEASE)/ballast-post spectra $(dir $<)sensors.csv --load $(TRACK_LOAD) --out $(@:.json=)
+
 ## Throughput of the track scene (part of `make bench`): 20 ms of the quick preset on 1
 ## and 2 threads (the files must agree: spectrum difference 0), with peak memory.
 ## TRACK_BENCH_PRESET=paper benchmarks the paper bed (needs results/bed-impact:
