@@ -998,8 +998,8 @@ fn a_killed_packing_resumes_to_the_same_bed_from_every_stage() {
     }
 }
 
-/// A checkpoint whose bodies the scene can no longer build (the stone meshes changed
-/// since the killed run) is a one-line error naming the file.
+/// A checkpoint whose stone meshes changed since the killed run (one remeshed, the
+/// count the same; then fewer) is a one-line error naming the file.
 #[cfg(unix)]
 #[test]
 fn a_checkpoint_of_other_stone_meshes_is_a_one_line_error() {
@@ -1033,6 +1033,19 @@ fn a_checkpoint_of_other_stone_meshes_is_a_one_line_error() {
         .map(|e| e.unwrap().path())
         .collect();
     meshes.sort();
+    // Remeshed, same count: the third stone takes the fourth's mesh.
+    std::fs::copy(&meshes[3], &meshes[2]).unwrap();
+    let resumed = pack().arg("--resume").arg(&out).output().unwrap();
+    common::assert_one_line_error(
+        &resumed,
+        1,
+        &[
+            "checkpoint.bin",
+            "stone shape 3",
+            "stone_",
+            "not the checkpoint's",
+        ],
+    );
     for mesh in &meshes[2..] {
         std::fs::remove_file(mesh).unwrap();
     }

@@ -25,7 +25,7 @@ use crate::nscd::checkpoint::BodyState;
 use crate::{Error, Result};
 
 /// The format tag.
-pub const PACK_CHECKPOINT_FORMAT: &str = "ballast-pack checkpoint 1";
+pub const PACK_CHECKPOINT_FORMAT: &str = "ballast-pack checkpoint 2";
 
 /// One body of the bed.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -71,6 +71,10 @@ pub struct DepositState {
     pub cursor: Cursor,
     /// The warm-start impulses, sorted by key.
     pub memory: Vec<(ContactKey, [f64; 3])>,
+    /// The volume of each stone shape of the family (m³, after the scale): the shapes
+    /// come from the stone meshes again on resume, and a remeshed family (same count,
+    /// new shapes) must not resume silently.
+    pub stone_volumes: Vec<f64>,
 }
 
 /// A `ballast-pack` checkpoint file's record.
@@ -159,6 +163,7 @@ impl Deposition {
             inserted: self.inserted,
             cursor: self.cursor.clone(),
             memory: self.engine.memory().entries(),
+            stone_volumes: self.setup.family.iter().map(|s| s.shape.volume).collect(),
         }
     }
 
@@ -170,6 +175,29 @@ impl Deposition {
         state: &DepositState,
         sleepers: &[SleeperModel],
     ) -> std::result::Result<Self, String> {
+        let family = &setup.family;
+        if state.stone_volumes.len() != family.len() {
+            return Err(format!(
+                "the checkpoint was written with {} stone shapes but stones.directory holds \
+                 {} shapes now (the stone meshes changed since the killed run)",
+                state.stone_volumes.len(),
+                family.len()
+            ));
+        }
+        let changed = family
+            .iter()
+            .zip(&state.stone_volumes)
+            .position(|(s, v)| s.shape.volume.to_bits() != v.to_bits());
+        if let Some(k) = changed {
+            return Err(format!(
+                "stone shape {} ({}) is not the checkpoint's: volume {:.6e} m³ now, {:.6e} m³ \
+                 when it was written (the stone meshes changed since the killed run)",
+                k + 1,
+                family[k].file.display(),
+                family[k].shape.volume,
+                state.stone_volumes[k]
+            ));
+        }
         let mut bed = Deposition::new(setup);
         let mut boundaries = std::mem::take(&mut bed.bodies).into_iter();
         bed.roles.clear();
