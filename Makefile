@@ -41,6 +41,11 @@ OBJECT_MESHES := $(patsubst geo/%.geo,meshes/%.msh,$(filter-out geo/stone.geo,$(
 
 export BALLAST_PYTHON := $(abspath $(PY))
 
+# A long run into directory $(1) by command $(2) (the tool and its scene arguments):
+# resumed from its checkpoint when a killed run left one and no summary, else run.
+resume_or_run = if [ -f $(1)/checkpoint.bin ] && [ ! -f $(1)/summary.json ]; then \
+	    $(2) --resume $(1); else $(2) --out $(1); fi
+
 # Fragments: Debian packages, the stone family, peer comparisons (one file each).
 include $(sort $(wildcard mk/*.mk))
 

@@ -61,11 +61,7 @@ TRACK_PAPER_BOGIE_ARGS := --preset paper --set 'track.loads="../$(TRACK_LOAD)"' 
 .PHONY: track-paper-bogie
 track-paper-bogie: results/track_impact_paper_bogie.json
 $(TRACK_PAPER_BOGIE): scenes/track_impact.toml results/bed-impact/packing.toml $(TRACK_LOAD) | $(RELEASE)/ballast-qdem
-	if [ -f $(@D)/checkpoint.bin ] && [ ! -f $@ ]; then \
-	    $(RELEASE)/ballast-qdem $< $(TRACK_PAPER_BOGIE_ARGS) --resume $(@D); \
-	else \
-	    $(RELEASE)/ballast-qdem $< $(TRACK_PAPER_BOGIE_ARGS) --out $(@D); \
-	fi
+	$(call resume_or_run,$(@D),$(RELEASE)/ballast-qdem $< $(TRACK_PAPER_BOGIE_ARGS))
 results/track_impact_paper_bogie.json: $(TRACK_PAPER_BOGIE) | $(RELEASE)/ballast-post
 	$(RELEASE)/ballast-post spectra $(dir $<)sensors.csv --load $(TRACK_LOAD) --out $(@:.json=)
 
