@@ -222,8 +222,12 @@ pub fn compare(
                 settlement_m: figure(&summary, &path, "sleeper_settlement_m")?,
                 stone_settlement_m: figures.stone_settlement_m,
                 stone_lateral_m: figures.stone_lateral_m,
+                // A record too short for any spectrum in the band (both zero) is no
+                // difference; a signal against a silent reference has no ratio.
                 spectrum_difference: if ref_norm > 0.0 {
                     diff / ref_norm
+                } else if diff == 0.0 {
+                    0.0
                 } else {
                     f64::NAN
                 },
@@ -249,7 +253,7 @@ pub fn table(runs: &[ComparedRun], reference: &Path, options: &CompareOptions) -
     for r in runs {
         let _ = writeln!(
             s,
-            "| {} | {} / {} | {:.1} | {:.3} | {:.3e} | {:.0} | {:.3} | {:.4} | {:.4} | {:.2} % |",
+            "| {} | {} / {} | {:.1} | {:.3} | {:.3e} | {:.0} | {:.3} | {:.4} | {:.4} | {} |",
             r.label,
             r.deformable_stones,
             r.stones,
@@ -260,7 +264,11 @@ pub fn table(runs: &[ComparedRun], reference: &Path, options: &CompareOptions) -
             r.settlement_m * 1e6,
             r.stone_settlement_m * 1e6,
             r.stone_lateral_m * 1e6,
-            100.0 * r.spectrum_difference
+            if r.spectrum_difference.is_nan() {
+                "no ratio (silent reference)".to_string()
+            } else {
+                format!("{:.2} %", 100.0 * r.spectrum_difference)
+            }
         );
     }
     s
