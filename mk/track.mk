@@ -48,6 +48,8 @@ $(TRACK_STUDY)/stones.md: $(TRACK_STONES:%=$(TRACK_STUDY)/stones-%/summary.json)
 ## The paper preset's load: the whole train of `ballast-post train-load`'s defaults
 ## (five cars at 115 km/h).
 TRACK_PAPER_LOAD := results/train-load/train_load.csv
+# The paper preset's bed (its scene reads this file): `make results/bed-impact/summary.json`.
+TRACK_PAPER_BED := results/bed-impact/packing.toml
 $(TRACK_PAPER_LOAD): mk/track.mk | $(RELEASE)/ballast-post
 	$(RELEASE)/ballast-post train-load --out $@
 
@@ -60,7 +62,7 @@ TRACK_PAPER_BOGIE_ARGS := --preset paper --set 'track.loads="../$(TRACK_LOAD)"' 
   --set 'track.duration="0.2 s"'
 .PHONY: track-paper-bogie
 track-paper-bogie: results/track_impact_paper_bogie.json
-$(TRACK_PAPER_BOGIE): scenes/track_impact.toml results/bed-impact/packing.toml $(TRACK_LOAD) | $(RELEASE)/ballast-qdem
+$(TRACK_PAPER_BOGIE): scenes/track_impact.toml $(TRACK_PAPER_BED) $(TRACK_LOAD) | $(RELEASE)/ballast-qdem
 	$(call resume_or_run,$(@D),$(RELEASE)/ballast-qdem $< $(TRACK_PAPER_BOGIE_ARGS))
 results/track_impact_paper_bogie.json: $(TRACK_PAPER_BOGIE) | $(RELEASE)/ballast-post
 	$(RELEASE)/ballast-post spectra $(dir $<)sensors.csv --load $(TRACK_LOAD) --out $(@:.json=)
@@ -75,7 +77,7 @@ TRACK_BENCH_PRESET ?= quick
 TRACK_BENCH_DURATION ?= 20 ms
 TRACK_BENCH_SETTLE ?=
 TRACK_BENCH := results/bench-track-$(TRACK_BENCH_PRESET)
-TRACK_BENCH_INPUTS := $(if $(filter paper,$(TRACK_BENCH_PRESET)),results/bed-impact/packing.toml $(TRACK_PAPER_LOAD),$(TRACK_BED) $(TRACK_LOAD))
+TRACK_BENCH_INPUTS := $(if $(filter paper,$(TRACK_BENCH_PRESET)),$(TRACK_PAPER_BED) $(TRACK_PAPER_LOAD),$(TRACK_BED) $(TRACK_LOAD))
 bench: bench-track
 bench-track: scenes/track_impact.toml $(TRACK_BENCH_INPUTS) | $(RELEASE)/ballast-qdem $(RELEASE)/ballast-post
 	for t in 1 2; do \
