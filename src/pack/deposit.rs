@@ -117,6 +117,41 @@ pub struct SleeperModel {
     pub level: bool,
 }
 
+/// `body` held where it is: a static body of the same shape, material and pose.
+pub(super) fn hold(body: &Body) -> Body {
+    Body::fixed(
+        &body.name,
+        body.shape.clone(),
+        body.material,
+        body.pose(),
+        Motion::Static,
+    )
+}
+
+impl SleeperModel {
+    /// A sleeper of this model at `pose` (of its own frame), released at rest, its
+    /// inertia divided by `inertia_scale` ([`DepositSetup::sleeper_inertia_scale`]).
+    pub fn body(&self, name: &str, pose: Isometry3<f64>, inertia_scale: f64) -> Body {
+        let body = Body::dynamic(
+            name,
+            self.shape.clone(),
+            self.density / inertia_scale,
+            self.material,
+            pose * self.frame,
+        );
+        if self.level {
+            body.translation_only()
+        } else {
+            body.without_yaw()
+        }
+    }
+
+    /// Its true mass (kg).
+    pub fn mass(&self) -> f64 {
+        self.density * self.shape.volume
+    }
+}
+
 /// Everything fixed for the deposition.
 #[derive(Debug, Clone)]
 pub struct DepositSetup {
@@ -164,6 +199,31 @@ pub struct DepositSetup {
     pub ddm: Option<DdmSetup>,
     /// Track-bed profile the strike-offs follow (`None`: a flat fill to each level).
     pub profile: Option<Profile>,
+    /// The sleepers' mass and moments of inertia are their true ones divided by this
+    /// (≥ 1), and each step adds the missing part of their weight, `(k − 1) g dt`, to
+    /// their velocity: the bed at rest carries their true weight, while the NLGS sees
+    /// a mass ratio it converges on (docs/pack.md, "Heavy sleepers").
+    pub sleeper_inertia_scale: f64,
+    /// For the final settle the sleepers are held where they rest (as their rails hold
+    /// them in track): its NLGS, without drag, then converges as on a bed of stones
+    /// alone. Free, a sleeper hundreds of times heavier than the stones keeps it from
+    /// converging (docs/pack.md, "Heavy sleepers").
+    pub hold_sleepers: bool,
+}
+
+impl DepositSetup {
+    /// The [`Self::sleeper_inertia_scale`] that brings a sleeper of `sleeper_mass`
+    /// (kg) to at most `ratio` times the family's mean stone mass (1: no scaling).
+    pub fn inertia_scale(
+        family: &[StoneShape],
+        stone_density: f64,
+        sleeper_mass: f64,
+        ratio: f64,
+    ) -> f64 {
+        let mean_volume =
+            family.iter().map(|s| s.shape.volume).sum::<f64>() / family.len().max(1) as f64;
+        (sleeper_mass / (ratio * stone_density * mean_volume)).max(1.0)
+    }
 }
 
 /// How one phase ended.
@@ -181,6 +241,10 @@ pub struct PhaseReport {
     pub inserted: usize,
     /// Stones removed by its strike-off.
     pub removed: usize,
+    /// The lowering of the sleepers: each sleeper's support at its end
+    /// ([`Deposition::sleeper_support`]; 1 when the bed carries its full weight).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sleeper_support: Option<Vec<f64>>,
 }
 
 /// A step's record for the CSV and the progress display.
@@ -343,6 +407,34 @@ impl Deposition {
         self.engine.contacts()
     }
 
+    /// Each free sleeper's support, in sleeper order: the upward resultant of the last
+    /// step's contact impulses on it over its true weight's impulse `m g dt`. A sleeper
+    /// at rest on the bed has 1, whatever its scaled inertia
+    /// ([`DepositSetup::sleeper_inertia_scale`]). `None` when no sleeper is free (none
+    /// laid yet, or held).
+    pub fn sleeper_support(&self) -> Option<Vec<f64>> {
+        let StepParams { dt, gravity, .. } = self.setup.params;
+        let down = gravity.normalize();
+        let mut up = vec![0.0; self.bodies.len()];
+        for c in self.last_contacts() {
+            let lift = -c.world_impulse().dot(&down);
+            up[c.contact.key.body_b as usize] += lift;
+            up[c.contact.key.body_a as usize] -= lift;
+        }
+        let support: Vec<f64> = self
+            .bodies
+            .iter()
+            .zip(&self.roles)
+            .zip(up)
+            .filter(|((b, r), _)| matches!(r, Role::Sleeper(_)) && b.is_dynamic())
+            .map(|((b, _), lift)| {
+                let weight = b.mass * self.setup.sleeper_inertia_scale * gravity.norm() * dt;
+                lift / weight
+            })
+            .collect();
+        (!support.is_empty()).then_some(support)
+    }
+
     /// Stones in the bed.
     pub fn stone_count(&self) -> usize {
         self.roles
@@ -380,6 +472,16 @@ impl Deposition {
             for b in self.bodies.iter_mut().filter(|b| b.is_dynamic()) {
                 b.velocity *= factor;
                 b.angular_velocity *= factor;
+            }
+        }
+        let scale = self.setup.sleeper_inertia_scale;
+        if scale > 1.0 {
+            // The part of the sleepers' weight their scaled mass does not carry.
+            let extra = (scale - 1.0) * self.setup.params.dt * self.setup.params.gravity;
+            for (b, r) in self.bodies.iter_mut().zip(&self.roles) {
+                if matches!(r, Role::Sleeper(_)) && b.is_dynamic() {
+                    b.velocity += extra;
+                }
             }
         }
         let clock = Instant::now();
@@ -624,6 +726,7 @@ impl Deposition {
                 settled: true,
                 inserted,
                 removed: 0,
+                sleeper_support: None,
             });
             self.enter_part(1);
         }
@@ -642,6 +745,10 @@ impl Deposition {
             let low = low_friction && self.setup.profile.is_none();
             let settled = self.settle_loop(&format!("{name} (after strike-off)"), low, observe);
             self.cursor.report.as_mut().expect("set in part 0").settled &= settled;
+        }
+        let support = self.sleeper_support();
+        if let Some(report) = self.cursor.report.as_mut() {
+            report.sleeper_support = support;
         }
         self.end_stage();
     }
@@ -740,6 +847,7 @@ impl Deposition {
             settled,
             inserted: 0,
             removed: 0,
+            sleeper_support: self.sleeper_support(),
         });
     }
 
@@ -790,6 +898,41 @@ impl Deposition {
         self.end_stage();
     }
 
+    /// Holds every sleeper where it rests, as a static body, if the scene says so
+    /// ([`DepositSetup::hold_sleepers`]; before the final settle). A held sleeper
+    /// cannot be pushed out of a stone under it, and a stone squeezed between it and
+    /// the bed cannot go anywhere either, so each sleeper is first lifted clear of the
+    /// stones it presses into (by the deepest overlap under it, measured along the
+    /// vertical: a few µm on a settled bed). Idempotent: a resumed run calls it again.
+    /// Returns each newly held sleeper's lift (m), in sleeper order.
+    pub fn hold_sleepers(&mut self) -> Vec<f64> {
+        if !self.setup.hold_sleepers {
+            return Vec::new();
+        }
+        let free: Vec<usize> = (0..self.bodies.len())
+            .filter(|&i| matches!(self.roles[i], Role::Sleeper(_)) && self.bodies[i].is_dynamic())
+            .collect();
+        if free.is_empty() {
+            return Vec::new();
+        }
+        let mut lift = vec![0.0_f64; self.bodies.len()];
+        for c in self.detect() {
+            let (a, b) = (c.key.body_a as usize, c.key.body_b as usize);
+            // The normal points from a to b: up into a sleeper b, down into a sleeper a.
+            for (sleeper, up) in [(b, c.normal.z), (a, -c.normal.z)] {
+                if up > 0.5 && c.gap < 0.0 && matches!(self.roles[sleeper], Role::Sleeper(_)) {
+                    lift[sleeper] = lift[sleeper].max(-c.gap / up);
+                }
+            }
+        }
+        for &i in &free {
+            let b = &mut self.bodies[i];
+            b.position.z += lift[i];
+            *b = hold(b);
+        }
+        free.iter().map(|&i| lift[i]).collect()
+    }
+
     /// Places the sleepers (see [`Self::lower_sleepers`]).
     fn place_sleepers(&mut self, sleepers: &[(SleeperModel, [f64; 2])]) {
         for (k, (model, [x, y])) in sleepers.iter().enumerate() {
@@ -806,22 +949,13 @@ impl Deposition {
                 }
             }
             // The sleeper's own frame is level, centred at (x, y), its underside at
-            // `highest + 1 mm`; its principal frame follows from `model.frame`.
+            // `highest + 1 mm`.
             let origin = Isometry3::translation(*x, *y, highest + 1e-3);
-            let pose = origin * model.frame;
-            let mut body = Body::dynamic(
+            let body = model.body(
                 &format!("sleeper_{}", k + 1),
-                model.shape.clone(),
-                model.density,
-                model.material,
-                pose,
+                origin,
+                self.setup.sleeper_inertia_scale,
             );
-            body = if model.level {
-                body.translation_only()
-            } else {
-                body.without_yaw()
-            };
-            body.velocity = Vector3::zeros();
             self.bodies.push(body);
             self.roles.push(Role::Sleeper(k));
         }
@@ -881,6 +1015,7 @@ impl Deposition {
                 settled: true,
                 inserted: 0,
                 removed: 0,
+                sleeper_support: self.sleeper_support(),
             });
             self.enter_part(2);
         }

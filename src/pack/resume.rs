@@ -17,7 +17,7 @@ use std::time::Duration;
 use nalgebra::{Isometry3, Vector3};
 use serde::{Deserialize, Serialize};
 
-use super::deposit::{Cursor, DepositSetup, Deposition, PhaseReport, Role, SleeperModel};
+use super::deposit::{hold, Cursor, DepositSetup, Deposition, PhaseReport, Role, SleeperModel};
 use crate::contact::{ContactKey, ImpulseMemory};
 use crate::geometry::random::SplitMix;
 use crate::nscd::body::Body;
@@ -25,7 +25,7 @@ use crate::nscd::checkpoint::BodyState;
 use crate::{Error, Result};
 
 /// The format tag.
-pub const PACK_CHECKPOINT_FORMAT: &str = "ballast-pack checkpoint 2";
+pub const PACK_CHECKPOINT_FORMAT: &str = "ballast-pack checkpoint 3";
 
 /// One body of the bed.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -38,6 +38,8 @@ pub struct SavedBody {
     pub state: BodyState,
     /// Principal moments of inertia (kg·m²; infinite about held axes).
     pub inertia: [f64; 3],
+    /// A sleeper held where it came to rest (`deposit.hold_sleepers`).
+    pub held: bool,
 }
 
 /// The deposition between two steps.
@@ -148,6 +150,7 @@ impl Deposition {
                     name: b.name.clone(),
                     state: BodyState::of(b),
                     inertia: b.inertia.into(),
+                    held: matches!(r, Role::Sleeper(_)) && !b.is_dynamic(),
                 })
                 .collect(),
             time: self.time,
@@ -231,18 +234,20 @@ impl Deposition {
                             sleepers.len()
                         )
                     })?;
-                    Body::dynamic(
+                    // Pose, velocities and inertia are the saved ones.
+                    model.body(
                         &saved.name,
-                        model.shape.clone(),
-                        model.density,
-                        model.material,
                         Isometry3::identity(),
+                        bed.setup.sleeper_inertia_scale,
                     )
                 }
             };
             saved.state.apply(&mut body);
             if body.is_dynamic() {
                 body.inertia = Vector3::from(saved.inertia);
+            }
+            if saved.held {
+                body = hold(&body);
             }
             bed.bodies.push(body);
             bed.roles.push(saved.role);

@@ -285,9 +285,13 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
         .as_ref()
         .map_or(depth, |s| depth + s.embed.si());
     let profile = profile_of(&scene, sleeper.as_ref(), crib_top, &ctx.scene_path)?;
+    let stone_density = scene.density(&scene.stones.material);
+    let sleeper_inertia_scale = sleeper.as_ref().map_or(1.0, |s| {
+        DepositSetup::inertia_scale(&family, stone_density, s.model.mass(), d.sleeper_mass_ratio)
+    });
     let setup = DepositSetup {
         family,
-        stone_density: scene.density(&scene.stones.material),
+        stone_density,
         stone_material: scene.material_index(&scene.stones.material),
         length: scene.bed.length.si(),
         width: scene.bed.width.si(),
@@ -316,6 +320,8 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
         seed: scene.seed,
         ddm,
         profile,
+        sleeper_inertia_scale,
+        hold_sleepers: d.hold_sleepers,
     };
     let placed: Vec<(SleeperModel, [f64; 2])> = match &sleeper {
         Some(source) => nominal
@@ -343,6 +349,13 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
         scene.sleepers.as_ref().map_or(0, |s| s.count),
         scene.seed,
     );
+    if bed.setup.sleeper_inertia_scale > 1.0 {
+        println!(
+            "ballast-pack: sleepers packed with 1/{:.2} of their inertia \
+             (deposit.sleeper_mass_ratio = {}), their full weight",
+            bed.setup.sleeper_inertia_scale, d.sleeper_mass_ratio
+        );
+    }
 
     let mut recorder = Recorder::open(
         &ctx.out_dir,
@@ -386,6 +399,15 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
     bed.finish();
     if stage == Some(CompactionStage::Bed) || (sleeper.is_none() && stage.is_some()) {
         compact(&mut bed, observe);
+    }
+    let lifts = bed.hold_sleepers();
+    if !lifts.is_empty() {
+        let microns: Vec<String> = lifts.iter().map(|l| format!("{:.1}", 1e6 * l)).collect();
+        println!(
+            "ballast-pack: sleepers held for the final settle, lifted clear of the stones \
+             under them by [{}] µm",
+            microns.join(", ")
+        );
     }
     bed.settle("final settle", observe);
     recorder.finish()?;
@@ -534,6 +556,7 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
             json!({
                 "name": p.name, "time_s": p.time, "steps": p.steps, "settled": p.settled,
                 "inserted": p.inserted, "removed": p.removed,
+                "sleeper_support_over_weight": p.sleeper_support,
             })
         })
         .collect();
@@ -563,6 +586,7 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
         .figure("profile", profile_json)
         .figure("bed_top_m", top)
         .figure("floor_offset_m", bed.floor_offset())
+        .figure("sleeper_inertia_scale", bed.setup.sleeper_inertia_scale)
         .figure("settled", settled)
         .figure("phases", phases)
         .figure("steps", bed.steps)

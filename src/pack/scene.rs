@@ -42,6 +42,9 @@
 //!                                       # (default 0.05 % of the family's d50)
 //! max_phase_time = "4 s"                # a phase that has not settled by then is reported
 //! drag_time = "0.1 s"                   # optional drag while raining (terminal 1 m/s)
+//! sleeper_mass_ratio = 100              # a sleeper's inertia at most this × the mean
+//!                                       # stone's mass while packing, its weight kept
+//! hold_sleepers = true                  # held where they rest for the final settle
 //! ddm = { driver = "synchronous" }      # DDM of the solve (crate::scene::DdmSpec;
 //!                                       # default: one slab per sleeper)
 //!
@@ -219,6 +222,18 @@ pub struct DepositSpec {
     /// (terminal speed g τ; none by default). The final settle runs without it.
     #[serde(default)]
     pub drag_time: Option<Time>,
+    /// While the bed is packed, a sleeper's inertia (mass and moments of inertia) is
+    /// scaled down to at most this many times the mean stone's mass; its weight stays
+    /// the true one (density scaling of a quasi-static deposit: the bed at rest carries
+    /// the same loads). The NLGS does not converge on a sleeper hundreds of times
+    /// heavier than the stones under it (docs/pack.md, "Heavy sleepers"). `inf` keeps
+    /// the true inertia.
+    #[serde(default = "default_sleeper_mass_ratio")]
+    pub sleeper_mass_ratio: f64,
+    /// The sleepers are held where they rest, as their rails hold them, for the final
+    /// settle (default true; docs/pack.md, "Heavy sleepers").
+    #[serde(default = "yes")]
+    pub hold_sleepers: bool,
     /// Domain decomposition of the contact solve (default: synchronous, one slab per
     /// sleeper).
     #[serde(default)]
@@ -270,6 +285,15 @@ pub struct OutputSpec {
 /// The seed's n_DDM for its Table 3 case (seed 000 §4.2).
 fn default_finish_sweeps() -> usize {
     500
+}
+
+fn yes() -> bool {
+    true
+}
+
+/// Sleepers' inertia at most 100 stones' (docs/pack.md, "Heavy sleepers").
+fn default_sleeper_mass_ratio() -> f64 {
+    100.0
 }
 
 fn default_checkpoint_every() -> u64 {
@@ -477,6 +501,11 @@ impl Validate for BedScene {
         if let Some(tau) = d.drag_time {
             v.positive("deposit.drag_time", tau);
         }
+        v.check(
+            "deposit.sleeper_mass_ratio",
+            d.sleeper_mass_ratio >= 1.0,
+            "must be at least 1 (inf keeps the true inertia)",
+        );
         if let Some(c) = &self.compaction {
             v.positive("compaction.amplitude", c.amplitude);
             v.positive("compaction.frequency", c.frequency);
