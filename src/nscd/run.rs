@@ -765,11 +765,14 @@ impl Outputs {
         subdomains: &[Option<u32>],
     ) -> Result<()> {
         let name = format!("frames/grains_{:04}.vtu", self.frames);
-        self.grains
-            .write_frame(time, &name, &grains_grid(bodies, true, subdomains)?)?;
+        self.grains.write_frame(
+            time,
+            &name,
+            &grains_grid(bodies, Drawn::Moving, subdomains)?,
+        )?;
         if let Some(driven) = &mut self.driven {
             let name = format!("frames/driven_{:04}.vtu", self.frames);
-            driven.write_frame(time, &name, &grains_grid(bodies, false, &[])?)?;
+            driven.write_frame(time, &name, &grains_grid(bodies, Drawn::Fixed, &[])?)?;
         }
         let name = format!("frames/contacts_{:04}.vtu", self.frames);
         self.contacts
@@ -779,17 +782,33 @@ impl Outputs {
     }
 }
 
-/// Polyhedral bodies as triangulated surfaces: the dynamic ones (`dynamic`) or the
-/// driven and fixed ones, with each body's `id` and DDM `subdomain` (from `subdomains`,
-/// one entry per body; −1 for none or an empty slice).
-pub fn grains_grid(bodies: &[Body], dynamic: bool, subdomains: &[Option<u32>]) -> Result<Grid> {
+/// Which polyhedral bodies [`grains_grid`] draws.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Drawn {
+    /// The dynamic ones (grains).
+    Moving,
+    /// The driven and fixed ones (tools, sleepers, walls).
+    Fixed,
+    /// All of them (a packing's sleepers, free or held).
+    All,
+}
+
+/// Polyhedral bodies as triangulated surfaces (those `drawn` says), with each body's
+/// `id` and DDM `subdomain` (from `subdomains`, one entry per body; −1 for none or an
+/// empty slice).
+pub fn grains_grid(bodies: &[Body], drawn: Drawn, subdomains: &[Option<u32>]) -> Result<Grid> {
     let mut points = Vec::new();
     let mut triangles = Vec::new();
     let mut velocity = Vec::new();
     let mut ids = Vec::new();
     let mut domains = Vec::new();
     for (k, body) in bodies.iter().enumerate() {
-        if !matches!(body.shape.collider, Collider::Convex(_)) || body.is_dynamic() != dynamic {
+        let wanted = match drawn {
+            Drawn::Moving => body.is_dynamic(),
+            Drawn::Fixed => !body.is_dynamic(),
+            Drawn::All => true,
+        };
+        if !matches!(body.shape.collider, Collider::Convex(_)) || !wanted {
             continue;
         }
         let base = points.len();

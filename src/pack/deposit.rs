@@ -243,7 +243,6 @@ pub struct PhaseReport {
     pub removed: usize,
     /// The lowering of the sleepers: each sleeper's support at its end
     /// ([`Deposition::sleeper_support`]; 1 when the bed carries its full weight).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sleeper_support: Option<Vec<f64>>,
 }
 

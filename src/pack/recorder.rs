@@ -11,8 +11,9 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 use super::deposit::{Deposition, Observer, Role, StepRecord};
 use super::resume::{PackCheckpoint, PACK_CHECKPOINT_FORMAT};
+use crate::contact::Collider;
 use crate::nscd::body::Body;
-use crate::nscd::run::grains_grid;
+use crate::nscd::run::{grains_grid, Drawn};
 use crate::output::{CsvSeries, Grid, PvdWriter};
 use crate::{Error, Result};
 
@@ -197,11 +198,11 @@ impl Observer for Recorder {
 
 /// Stones and sleepers in one grid, cell field `sleeper` (1 on sleepers).
 pub fn bed_grid(bodies: &[Body], roles: &[Role]) -> Result<Grid> {
-    let mut grid = grains_grid(bodies, true, &[])?;
+    let mut grid = grains_grid(bodies, Drawn::All, &[])?;
     let kinds: Vec<i32> = bodies
         .iter()
         .zip(roles)
-        .filter(|(b, _)| b.is_dynamic())
+        .filter(|(b, _)| matches!(b.shape.collider, Collider::Convex(_)))
         .flat_map(|(b, r)| {
             std::iter::repeat_n(
                 i32::from(matches!(r, Role::Sleeper(_))),

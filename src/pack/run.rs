@@ -34,7 +34,7 @@ use crate::ddm::Partitioning;
 use crate::geometry::{ControlBox, Period};
 use crate::nscd::body::{Body, BodyShape};
 use crate::nscd::motion::{mesh_pieces, Pieces};
-use crate::nscd::run::grains_grid;
+use crate::nscd::run::{grains_grid, Drawn};
 use crate::nscd::scene::{read_stone_shapes, NscdScene, StoneShape};
 use crate::nscd::step::{FrictionTable, StepParams};
 use crate::output::{write_json, write_vtu, Grid, CHECKPOINT_FILE};
@@ -535,12 +535,12 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
     let (stones, sleepers) = split(&bed.bodies, &bed.roles);
     write_vtu(
         ctx.out_dir.join("stones.vtu"),
-        &grains_grid(&stones, true, &[])?,
+        &grains_grid(&stones, Drawn::All, &[])?,
     )?;
     if !sleepers.is_empty() {
         write_vtu(
             ctx.out_dir.join("sleepers.vtu"),
-            &grains_grid(&sleepers, true, &[])?,
+            &grains_grid(&sleepers, Drawn::All, &[])?,
         )?;
     }
     write_vtu(ctx.out_dir.join("control_boxes.vtu"), &boxes_grid(&solid)?)?;
