@@ -41,6 +41,17 @@ pub fn aabb_of(points: &[Point3<f64>], pose: &Isometry3<f64>) -> Aabb {
     Aabb { min, max }
 }
 
+impl Aabb {
+    /// The box grown by `margin` (m) on every side.
+    pub fn grown(self, margin: f64) -> Aabb {
+        let m = Vector3::repeat(margin);
+        Aabb {
+            min: self.min - m,
+            max: self.max + m,
+        }
+    }
+}
+
 /// A candidate pair `(i, j, k)`, `i < j`: body i against body j translated by `k`
 /// periods (`k` = 0 without periodicity or within the cell; ±1 across an end).
 pub type Candidate = (u32, u32, i8);

@@ -93,7 +93,9 @@ impl Detector {
         self.broad.clear();
         for (collider, pose) in colliders.iter().zip(poses) {
             self.broad.push(match collider {
-                Collider::Convex(shape) => BroadShape::Bounded(aabb_of(shape.points(), pose)),
+                Collider::Convex(shape) => {
+                    BroadShape::Bounded(aabb_of(shape.points(), pose).grown(shape.round()))
+                }
                 Collider::HalfSpace(normal) => BroadShape::HalfSpace(
                     Point3::from(pose.translation.vector),
                     pose.rotation * *normal,
@@ -288,6 +290,44 @@ fn convex_convex_contacts(
             features: [PackedFeatureId::vertex(ia).0, PackedFeatureId::vertex(ib).0],
             gap: sat,
         });
+    }
+}
+
+/// The feature code of the closest-points contact of rounded hulls (one per pair).
+const CLOSEST_FEATURE: u32 = u32::MAX;
+
+/// Rounded hulls apart: the hulls' closest points (GJK), unless a point of `out` is as
+/// close already. The face and edge points of [`convex_convex_contacts`] hold the
+/// closest features' points only where the hulls touch or nearly: a corner a few mm
+/// from an edge has neither, and rounded by more than that it is a contact.
+fn closest_hull_points(
+    pos12: &Isometry3<f64>,
+    a: &ConvexShape,
+    b: &ConvexShape,
+    alert: f64,
+    size: f64,
+    out: &mut Vec<LocalContact>,
+) {
+    use parry3d_f64::query::gjk::{self, CSOPoint, GJKResult, VoronoiSimplex};
+    let start = Unit::try_new(pos12.translation.vector, 1e-12).unwrap_or(Vector3::x_axis());
+    let mut simplex = VoronoiSimplex::new();
+    simplex.reset(CSOPoint::from_shapes(pos12, a, b, &-start));
+    if let GJKResult::ClosestPoints(on_a, on_b, normal) =
+        gjk::closest_points(pos12, a, b, alert, true, &mut simplex)
+    {
+        let distance = (on_b - on_a).norm();
+        let covered = out
+            .iter()
+            .any(|p| p.gap > 0.0 && (p.on_b - p.on_a).norm() <= distance + 1e-9 * size);
+        if !covered {
+            out.push(LocalContact {
+                on_a,
+                on_b,
+                normal: *normal,
+                features: [CLOSEST_FEATURE, CLOSEST_FEATURE],
+                gap: distance,
+            });
+        }
     }
 }
 
@@ -761,25 +801,45 @@ fn pair_contacts(first: Side, second: Side, alert: f64, out: &mut Vec<ContactPoi
     let Collider::Convex(shape_b) = b.1 else {
         return;
     };
+    // Rounded shapes: the hulls' contacts within the alert distance plus the roundings,
+    // each gap less them, the point midway between the rounded surfaces.
+    let (round_a, round_b) = (a.1.round(), shape_b.round());
+    let hull_alert = alert + round_a + round_b;
     let mut local = Vec::new();
     let size = match a.1 {
         Collider::Convex(shape_a) => {
             let size = shape_a.bounding_radius().max(shape_b.bounding_radius());
-            convex_convex_contacts(&pos12, shape_a, shape_b, alert, size, &mut local);
+            convex_convex_contacts(&pos12, shape_a, shape_b, hull_alert, size, &mut local);
+            if round_a + round_b > 0.0 {
+                closest_hull_points(&pos12, shape_a, shape_b, hull_alert, size, &mut local);
+            }
             size
         }
         Collider::HalfSpace(normal) => {
-            halfspace_contacts(&pos12, normal, shape_b, alert, &mut local);
+            halfspace_contacts(&pos12, normal, shape_b, hull_alert, &mut local);
             shape_b.bounding_radius()
         }
     };
     let merge = 1e-6 * size;
     let start = out.len();
+    let rounded = round_a + round_b > 0.0;
     for p in &local {
-        if p.gap > alert {
+        // A point of hulls apart is, on rounded shapes, two spheres of the roundings
+        // centred on the hulls' points: their distance, along the line between them.
+        // (Along the reference normal, a point beside the closest features, an edge
+        // crossing a few mm aside, say, would claim an overlap of hulls a few mm apart.)
+        let between = p.on_b - p.on_a;
+        let (normal, hull_gap) = match between.norm() {
+            d if rounded && p.gap > 0.0 && d > 0.0 => (between / d, d),
+            _ => (p.normal, p.gap),
+        };
+        let gap = hull_gap - round_a - round_b;
+        if gap > alert {
             continue;
         }
-        let point = a.2 * Point3::from(0.5 * (p.on_a.coords + p.on_b.coords));
+        let on_a = p.on_a.coords + normal * round_a;
+        let on_b = p.on_b.coords - normal * round_b;
+        let point = a.2 * Point3::from(0.5 * (on_a + on_b));
         if out[start..]
             .iter()
             .any(|q| (q.point - point).norm() < merge)
@@ -794,8 +854,8 @@ fn pair_contacts(first: Side, second: Side, alert: f64, out: &mut Vec<ContactPoi
                 feature_b: p.features[1],
             },
             point,
-            normal: a.2.rotation * p.normal,
-            gap: p.gap,
+            normal: a.2.rotation * normal,
+            gap,
             shift_b: Vector3::zeros(),
         });
     }
@@ -1023,6 +1083,59 @@ mod tests {
     }
 
     #[test]
+    fn random_rounded_hulls_report_their_closest_point() {
+        // The hulls of the test above rounded by 6 mm, moved apart until their hulls
+        // are d apart (parry), d between 0 and 2r + the alert distance: the rounded
+        // shapes are d − 2r apart, and the detected points must include one at least
+        // that close.
+        use parry3d_f64::query::details::contact_support_map_support_map;
+        let r = 6e-3;
+        let mut unit = unit_vectors(0x9e37_79b9_7f4a_7c15u64);
+        let mut checked = 0;
+        for k in 0..200 {
+            let (a, b, [ra, rb], direction) =
+                random_pair(&mut unit, 20, Vector3::new(0.03, 0.02, 0.015));
+            let target = [1e-4, 3e-3, 6e-3, 1.19e-2, 1.3e-2][k % 5];
+            let signed = |t: f64| {
+                let pos12 = Isometry3::from_parts(Translation3::identity(), ra).inverse()
+                    * Isometry3::from_parts(Translation3::from(direction * t), rb);
+                contact_support_map_support_map(&pos12, &a, &b, 1.0).map(|c| c.dist)
+            };
+            let (mut lo, mut hi) = (0.0, 0.2);
+            for _ in 0..100 {
+                let mid = 0.5 * (lo + hi);
+                match signed(mid) {
+                    Some(d) if d < target => lo = mid,
+                    _ => hi = mid,
+                }
+            }
+            let Some(d) = signed(hi) else { continue };
+            let poses = [
+                Isometry3::from_parts(Translation3::identity(), ra),
+                Isometry3::from_parts(Translation3::from(direction * hi), rb),
+            ];
+            let (ca, cb) = (
+                Collider::Convex(a.clone().rounded(r)),
+                Collider::Convex(b.clone().rounded(r)),
+            );
+            let contacts = detect(&[&ca, &cb], &poses, &[true, true], 2e-3);
+            let least = contacts.iter().map(|c| c.gap).fold(f64::INFINITY, f64::min);
+            assert!(
+                least <= d - 2.0 * r + 1e-9,
+                "hulls {d} apart, least gap {least}: {contacts:?}"
+            );
+            // Nor closer than the rounded shapes are: a point's gap is the distance of
+            // two spheres inside them.
+            assert!(
+                least >= d - 2.0 * r - 1e-9,
+                "hulls {d} apart, a point claims {least}: {contacts:?}"
+            );
+            checked += 1;
+        }
+        assert!(checked > 150, "{checked}");
+    }
+
+    #[test]
     fn hulls_beyond_the_alert_distance_have_no_points() {
         // Angular random hulls (10 points on a 2 cm sphere) at random orientations and
         // 2.5 to 8 mm apart (GJK), alert 2 mm: no point at all. The edge test skips the
@@ -1108,5 +1221,79 @@ mod tests {
             k
         };
         assert_eq!(keys(&first), keys(&second));
+    }
+
+    fn rounded_cube(half: f64, round: f64) -> Collider {
+        let Collider::Convex(shape) = cube(half) else {
+            unreachable!()
+        };
+        Collider::Convex(shape.rounded(round))
+    }
+
+    #[test]
+    fn rounded_cubes_touch_at_their_rounded_faces() {
+        // Two unit cubes rounded by 5 mm: their rounded faces meet when the hulls are
+        // 10 mm apart. Hulls 10.3 mm apart along z: four points, gap 0.3 mm, on the
+        // plane midway between the rounded faces (z = 0.5 + 5 mm + 0.15 mm), found by
+        // the broad phase although the hulls' boxes are 10 mm apart, beyond the 1 mm
+        // alert distance.
+        let r = 5e-3;
+        let (lower, upper) = (rounded_cube(0.5, r), rounded_cube(0.5, r));
+        let at = |z: f64| {
+            [
+                Isometry3::identity(),
+                Isometry3::translation(0.1, 0.05, 1.0 + z),
+            ]
+        };
+        let near = detect(&[&lower, &upper], &at(2.0 * r + 3e-4), &[true, true], 1e-3);
+        assert_eq!(near.len(), 4, "{near:?}");
+        for c in &near {
+            assert!((c.gap - 3e-4).abs() < 1e-12, "gap {}", c.gap);
+            assert!((c.normal - Vector3::z()).norm() < 1e-12);
+            assert!(
+                (c.point.z - (0.5 + r + 1.5e-4)).abs() < 1e-12,
+                "{}",
+                c.point
+            );
+        }
+        // Overlapping rounded faces (hulls 9 mm apart): a gap of −1 mm.
+        let deep = detect(&[&lower, &upper], &at(2.0 * r - 1e-3), &[true, true], 1e-3);
+        assert_eq!(deep.len(), 4);
+        assert!(deep.iter().all(|c| (c.gap + 1e-3).abs() < 1e-12));
+        // Beyond the alert distance from the rounded faces: nothing.
+        assert!(detect(
+            &[&lower, &upper],
+            &at(2.0 * r + 1.5e-3),
+            &[true, true],
+            1e-3
+        )
+        .is_empty());
+        // The bare cubes at 10.3 mm: nothing either.
+        let (bare_lower, bare_upper) = (cube(0.5), cube(0.5));
+        assert!(detect(
+            &[&bare_lower, &bare_upper],
+            &at(2.0 * r + 3e-4),
+            &[true, true],
+            1e-3
+        )
+        .is_empty());
+    }
+
+    #[test]
+    fn a_rounded_cube_rests_on_a_plane_by_its_rounding() {
+        let r = 5e-3;
+        let floor = Collider::HalfSpace(Vector3::z_axis());
+        let block = rounded_cube(0.5, r);
+        let poses = [
+            Isometry3::identity(),
+            Isometry3::translation(0.0, 0.0, 0.5 + r + 1e-4),
+        ];
+        let contacts = detect(&[&floor, &block], &poses, &[false, true], 1e-3);
+        assert_eq!(contacts.len(), 4);
+        for c in &contacts {
+            assert!((c.gap - 1e-4).abs() < 1e-12, "{}", c.gap);
+            // Midway between the plane and the rounded corner's lowest point.
+            assert!((c.point.z - 0.5e-4).abs() < 1e-12, "{}", c.point);
+        }
     }
 }

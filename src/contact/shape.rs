@@ -18,6 +18,9 @@ pub struct ConvexShape {
     /// Edges and face planes (boxed: keeps [`Collider`]'s variants close in size).
     derived: Box<Derived>,
     radius: f64,
+    /// The rounding: the shape is the hull swept by a sphere of this radius (m; 0 for
+    /// the bare hull).
+    round: f64,
 }
 
 #[derive(Debug, Clone)]
@@ -80,7 +83,21 @@ impl ConvexShape {
             polyhedron,
             derived: Box::new(Derived { edges, planes }),
             radius,
+            round: 0.0,
         })
+    }
+
+    /// The hull swept by a sphere of radius `round` (m): every point within `round` of
+    /// it (a sphero-polyhedron). Contacts are those of the hulls with the gap less
+    /// `round` on each side ([`super::narrow`]).
+    pub fn rounded(mut self, round: f64) -> Self {
+        self.round = round;
+        self
+    }
+
+    /// The rounding radius (m; 0 for the bare hull).
+    pub fn round(&self) -> f64 {
+        self.round
     }
 
     /// Whether `p` (local) is inside the hull or within `tolerance` of it (every face
@@ -107,7 +124,8 @@ impl ConvexShape {
         self.polyhedron.points()
     }
 
-    /// The radius of the smallest origin-centred sphere holding the shape.
+    /// The radius of the smallest origin-centred sphere holding the hull (without the
+    /// rounding).
     pub fn bounding_radius(&self) -> f64 {
         self.radius
     }
@@ -170,6 +188,14 @@ impl Collider {
     /// Whether the collider is bounded (a half-space is not).
     pub fn is_bounded(&self) -> bool {
         matches!(self, Collider::Convex(_))
+    }
+
+    /// The rounding radius of a polyhedron (0 for a bare one and for a half-space).
+    pub fn round(&self) -> f64 {
+        match self {
+            Collider::Convex(shape) => shape.round(),
+            Collider::HalfSpace(_) => 0.0,
+        }
     }
 }
 

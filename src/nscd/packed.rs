@@ -151,8 +151,11 @@ pub fn packed_bodies(
         };
         if shapes[m].is_none() {
             let spec = &packing.meshes[m];
-            shapes[m] =
-                Some(read_stone_shape(&spec.file, spec.scale).map_err(|e| mesh_error(m, e))?);
+            shapes[m] = Some(
+                read_stone_shape(&spec.file, spec.scale)
+                    .map_err(|e| mesh_error(m, e))?
+                    .rounded(spec.round_m),
+            );
         }
         let stone = shapes[m].as_ref().expect("read above");
         stone_diameters.push(stone.diameter());

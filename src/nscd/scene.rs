@@ -88,6 +88,7 @@ use serde::Deserialize;
 use super::body::{Body, BodyShape, Motion, Prescribed, PrincipalShape};
 use super::motion::{mesh_pieces, Pieces, VelocityTable};
 use super::step::FrictionTable;
+use crate::contact::Collider;
 use crate::geometry::random::SplitMix;
 use crate::geometry::Period;
 use crate::scene::{
@@ -1251,9 +1252,27 @@ impl StoneShape {
         (6.0 * self.shape.volume / std::f64::consts::PI).cbrt()
     }
 
-    /// The bounding radius about the mass centre (m).
+    /// The bounding radius about the mass centre (m), rounding included.
     pub fn radius(&self) -> f64 {
         self.shape.bounding_radius()
+    }
+
+    /// The rounding of its collider (m; 0 for the bare hull).
+    pub fn round(&self) -> f64 {
+        self.shape.collider.round()
+    }
+
+    /// The same stone with its collider swept by a sphere of radius `round` (m; see
+    /// [`crate::contact::ConvexShape::rounded`]). Mass and inertia stay the hull's: the
+    /// rounding stands for the contact spheres at the vertices of seed 004's stones,
+    /// which add no mass.
+    pub fn rounded(mut self, round: f64) -> Self {
+        if let Collider::Convex(hull) = &self.shape.collider {
+            let mut shape = (*self.shape).clone();
+            shape.collider = Collider::Convex(hull.clone().rounded(round));
+            self.shape = Arc::new(shape);
+        }
+        self
     }
 
     /// Stone number `k` of this shape as a dynamic body, named `<mesh stem>#k`, its

@@ -548,14 +548,16 @@ impl Deposition {
         }
     }
 
-    /// Highest hull vertex of any bounded body (m); 0 for an empty container.
+    /// Highest point of any bounded body (m: a hull vertex, plus the rounding); 0 for
+    /// an empty container.
     fn top(&self) -> f64 {
         self.bodies
             .iter()
             .filter(|b| b.shape.collider.is_bounded())
             .flat_map(|b| {
                 let pose = b.pose();
-                b.shape.vertices.iter().map(move |p| (pose * p).z)
+                let round = b.shape.collider.round();
+                b.shape.vertices.iter().map(move |p| (pose * p).z + round)
             })
             .fold(0.0, f64::max)
     }
@@ -941,14 +943,15 @@ impl Deposition {
                 if !matches!(r, Role::Stone(_)) {
                     continue;
                 }
+                let round = b.shape.collider.round();
                 for p in b.world_vertices() {
                     if (p.x - x).abs() <= 0.5 * fx && (p.y - y).abs() <= 0.5 * fy {
-                        highest = highest.max(p.z);
+                        highest = highest.max(p.z + round);
                     }
                 }
             }
             // The sleeper's own frame is level, centred at (x, y), its underside at
-            // `highest + 1 mm`.
+            // `highest + 1 mm` (the highest point of a rounded stone under it).
             let origin = Isometry3::translation(*x, *y, highest + 1e-3);
             let body = model.body(
                 &format!("sleeper_{}", k + 1),

@@ -18,6 +18,7 @@
 //! [[mesh]]                 # mesh files, relative to the packing file
 //! file = "../../meshes/stones/stone_001.msh"
 //! scale = 1.0
+//! round_m = 0.012          # optional: the stone is its hull swept by this sphere
 //!
 //! [[stone]]
 //! mesh = 0                 # index into [[mesh]]
@@ -53,6 +54,10 @@ pub struct PackedMesh {
     pub file: PathBuf,
     /// Factor on the mesh coordinates.
     pub scale: f64,
+    /// The stone is its hull swept by a sphere of this radius (m; 0, the default: the
+    /// bare hull), as `ballast-pack`'s `stones.round` packed it.
+    #[serde(default)]
+    pub round_m: f64,
 }
 
 /// A rigid placement of a mesh (or a cuboid).
@@ -155,6 +160,9 @@ impl Packing {
                 quoted(&m.file),
                 m.scale
             );
+            if m.round_m != 0.0 {
+                let _ = writeln!(out, "round_m = {:?}", m.round_m);
+            }
         }
         for (table, list) in [("stone", &self.stones), ("sleeper", &self.sleepers)] {
             for p in list {
@@ -227,6 +235,9 @@ impl Packing {
             if !(m.scale.is_finite() && m.scale > 0.0) {
                 return Err(format!("key mesh[{i}].scale: must be a positive number"));
             }
+            if !(m.round_m.is_finite() && m.round_m >= 0.0) {
+                return Err(format!("key mesh[{i}].round_m: must be a number ≥ 0"));
+            }
         }
         for (table, list) in [("stone", &self.stones), ("sleeper", &self.sleepers)] {
             for (i, p) in list.iter().enumerate() {
@@ -275,10 +286,18 @@ mod tests {
             container_max: [1.0, 0.5, 1.0 / 3.0],
             sides: "walls".into(),
             crib_top_m: Some(0.25),
-            meshes: vec![PackedMesh {
-                file: "stones/stone_001.msh".into(),
-                scale: 1.0,
-            }],
+            meshes: vec![
+                PackedMesh {
+                    file: "stones/stone_001.msh".into(),
+                    scale: 1.0,
+                    round_m: 0.012,
+                },
+                PackedMesh {
+                    file: "stones/stone_002.msh".into(),
+                    scale: 1.5,
+                    round_m: 0.0,
+                },
+            ],
             stones: vec![Placement::from_pose(
                 Some(0),
                 None,
@@ -307,6 +326,10 @@ mod tests {
         let text = sample().to_toml();
         let cases = [
             (text.replace("mesh = 0", "mesh = 4"), "stone[0].mesh"),
+            (
+                text.replace("round_m = 0.012", "round_m = -0.01"),
+                "mesh[0].round_m",
+            ),
             (
                 text.replace(
                     "orientation = [1.0, 0.0, 0.0, 0.0]",

@@ -114,6 +114,13 @@ pub struct StonesSpec {
     /// Factor on the family's coordinates.
     #[serde(default = "unit")]
     pub scale: f64,
+    /// Experimental: the stones are packed as their hulls swept by a sphere of this
+    /// radius (default 0: bare hulls), so that neighbours' hulls stay about twice it
+    /// apart, as the contact spheres at the vertices of seed 004's stones keep them.
+    /// The contact geometry is tested; a packed bed has not yet settled with it
+    /// (docs/pack.md, "Rounded stones").
+    #[serde(default)]
+    pub round: Option<Length>,
     /// Cap on the number of stones.
     #[serde(default)]
     pub count: Option<usize>,
@@ -390,6 +397,9 @@ impl Validate for BedScene {
             self.stones.scale.is_finite() && self.stones.scale > 0.0,
             "must be a positive number",
         );
+        if let Some(r) = self.stones.round {
+            v.non_negative("stones.round", r);
+        }
         if let Some(n) = self.stones.count {
             v.check("stones.count", n > 0, "must be at least 1");
         }
