@@ -39,6 +39,7 @@
 //! Half-space: every hull vertex within the alert distance.
 
 use nalgebra::{Isometry3, Point3, Translation3, Unit, Vector3};
+use parry3d_f64::query::gjk::{CSOPoint, GJKResult, VoronoiSimplex};
 use parry3d_f64::shape::{PackedFeatureId, SupportMap};
 use rayon::prelude::*;
 
@@ -293,6 +294,21 @@ fn convex_convex_contacts(
     }
 }
 
+/// parry's GJK on two hulls (`pos12`: b's frame in a's), bounded by `alert`, started
+/// along the line of their centres; `exact` asks for closest points.
+fn gjk(
+    pos12: &Isometry3<f64>,
+    a: &ConvexShape,
+    b: &ConvexShape,
+    alert: f64,
+    exact: bool,
+) -> GJKResult {
+    let start = Unit::try_new(pos12.translation.vector, 1e-12).unwrap_or(Vector3::x_axis());
+    let mut simplex = VoronoiSimplex::new();
+    simplex.reset(CSOPoint::from_shapes(pos12, a, b, &-start));
+    parry3d_f64::query::gjk::closest_points(pos12, a, b, alert, exact, &mut simplex)
+}
+
 /// The feature code of the closest-points contact of rounded hulls (one per pair).
 const CLOSEST_FEATURE: u32 = u32::MAX;
 
@@ -308,13 +324,7 @@ fn closest_hull_points(
     size: f64,
     out: &mut Vec<LocalContact>,
 ) {
-    use parry3d_f64::query::gjk::{self, CSOPoint, GJKResult, VoronoiSimplex};
-    let start = Unit::try_new(pos12.translation.vector, 1e-12).unwrap_or(Vector3::x_axis());
-    let mut simplex = VoronoiSimplex::new();
-    simplex.reset(CSOPoint::from_shapes(pos12, a, b, &-start));
-    if let GJKResult::ClosestPoints(on_a, on_b, normal) =
-        gjk::closest_points(pos12, a, b, alert, true, &mut simplex)
-    {
+    if let GJKResult::ClosestPoints(on_a, on_b, normal) = gjk(pos12, a, b, alert, true) {
         let distance = (on_b - on_a).norm();
         let covered = out
             .iter()
@@ -352,10 +362,6 @@ fn gjk_separation(
     b: &ConvexShape,
     alert: f64,
 ) -> Option<(f64, Vector3<f64>)> {
-    use parry3d_f64::query::gjk::{self, CSOPoint, GJKResult, VoronoiSimplex};
-    let start = Unit::try_new(pos12.translation.vector, 1e-12).unwrap_or(Vector3::x_axis());
-    let mut simplex = VoronoiSimplex::new();
-    simplex.reset(CSOPoint::from_shapes(pos12, a, b, &-start));
     // The separation along unit `n` (a's frame, from a to b): b's lowest point along n
     // less a's highest.
     let along = |n: &Vector3<f64>| {
@@ -363,7 +369,7 @@ fn gjk_separation(
         let high_a = a.local_support_point(n);
         n.dot(&(low_b - high_a))
     };
-    match gjk::closest_points(pos12, a, b, alert, true, &mut simplex) {
+    match gjk(pos12, a, b, alert, true) {
         GJKResult::NoIntersection(n)
         | GJKResult::Proximity(n)
         | GJKResult::ClosestPoints(_, _, n) => Some((along(&n), *n)),

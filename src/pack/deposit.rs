@@ -241,8 +241,8 @@ pub struct PhaseReport {
     pub inserted: usize,
     /// Stones removed by its strike-off.
     pub removed: usize,
-    /// The lowering of the sleepers: each sleeper's support at its end
-    /// ([`Deposition::sleeper_support`]; 1 when the bed carries its full weight).
+    /// Each free sleeper's support at the phase's end ([`Deposition::sleeper_support`];
+    /// 1 when the bed carries its full weight); `None` when no sleeper is free.
     pub sleeper_support: Option<Vec<f64>>,
 }
 
