@@ -213,8 +213,9 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
     let round = scene.stones.round.map_or(0.0, |r| r.si());
     if round > 0.0 {
         println!(
-            "ballast-pack: stones.round is experimental: no bed packed with it has settled \
-             yet (docs/pack.md, \"Rounded stones\")"
+            "ballast-pack: stones.round is experimental: with held sleepers the quick bed \
+             does not settle, with deposit.hold_sleepers=false it does (docs/pack.md, \
+             \"Rounded stones\")"
         );
     }
     let family: Vec<StoneShape> = timer

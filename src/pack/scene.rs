@@ -117,8 +117,8 @@ pub struct StonesSpec {
     /// Experimental: the stones are packed as their hulls swept by a sphere of this
     /// radius (default 0: bare hulls), so that neighbours' hulls stay about twice it
     /// apart, as the contact spheres at the vertices of seed 004's stones keep them.
-    /// The contact geometry is tested; a packed bed has not yet settled with it
-    /// (docs/pack.md, "Rounded stones").
+    /// The contact geometry is tested and the quick bed settles with it and free
+    /// sleepers, not yet with held ones (docs/pack.md, "Rounded stones").
     #[serde(default)]
     pub round: Option<Length>,
     /// Cap on the number of stones.
