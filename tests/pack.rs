@@ -635,6 +635,64 @@ fn a_sleeper_a_thousand_stones_heavy_is_carried_and_the_bed_settles() {
 }
 
 #[test]
+fn rounded_stones_pack_apart_by_their_rounding_and_ballast_nscd_reads_it() {
+    // The box without sleepers, its stones rounded by 2 mm (`stones.round`,
+    // experimental; docs/pack.md, "Rounded stones").
+    let (work, path) = small_box_scene("0.1 m", "", "");
+    let out = work.path().join("out");
+    let output = Command::new(PACK)
+        .arg(&path)
+        .arg("--out")
+        .arg(&out)
+        .args(["--set", "stones.round=\"2 mm\""])
+        .output()
+        .unwrap();
+    assert_success(&output);
+    let f = figures(&out);
+    assert_eq!(f["settled"], true, "{}", f["phases"]);
+    assert!(figure(&f, "max_interpenetration_over_d50") < 1e-3);
+    assert_eq!(figure(&f, "stones_outside"), 0.0);
+    let packing = out.join("packing.toml");
+    let text = std::fs::read_to_string(&packing).unwrap();
+    let meshes = text.matches("[[mesh]]").count();
+    assert!(meshes > 0);
+    assert_eq!(text.matches("round_m = 0.002").count(), meshes, "{text}");
+    // ballast-nscd builds the rounded stones from the packing: they touch where they
+    // were packed (the overlaps of the rounded shapes stay below 0.1 % of d50, and
+    // there are as many touching contacts as ballast-pack's coordination number says:
+    // each touching pair has at least one). Read as bare hulls (`round_m` removed), the
+    // same stones stand up to 4 mm apart, beyond the 2 mm alert distance: far fewer
+    // touch, and the bed starts to fall.
+    let touching = |packing: &Path| {
+        let (_work, _out, n) = nscd_on_packing(packing, 1);
+        (
+            figure(&n, "final_touching_contacts"),
+            figure(&n, "final_max_interpenetration_over_d50"),
+        )
+    };
+    let (rounded, overlap) = touching(&packing);
+    assert!(overlap < 1e-3, "overlap {overlap} d50");
+    let pairs = 0.5 * figure(&f, "coordination_number") * figure(&f, "grains");
+    assert!(
+        rounded >= pairs,
+        "{rounded} touching contacts, {pairs} stone pairs"
+    );
+    // Beside the packing, so that its relative mesh paths hold.
+    let bare = out.join("bare.toml");
+    let stripped: String = text
+        .lines()
+        .filter(|l| !l.starts_with("round_m"))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    std::fs::write(&bare, stripped).unwrap();
+    let (hulls, _) = touching(&bare);
+    assert!(
+        hulls < 0.5 * rounded,
+        "bare hulls {hulls}, rounded {rounded}"
+    );
+}
+
+#[test]
 fn beds_that_cannot_hold_the_stones_are_one_line_errors() {
     let work = tempfile::tempdir().unwrap();
     let cases: [(&[&str], &str); 7] = [
