@@ -452,14 +452,20 @@ fn malformed_packings_give_one_line_errors() {
 fn small_box(depth: &str, sleepers: &str, compaction: &str) -> (tempfile::TempDir, PathBuf) {
     let (work, path) = small_box_scene(depth, sleepers, compaction);
     let out = work.path().join("out");
+    pack_into(&path, &out, &[]);
+    (work, out)
+}
+
+/// Runs `ballast-pack SCENE --out OUT EXTRA…` and checks that it succeeded.
+fn pack_into(scene: &Path, out: &Path, extra: &[&str]) {
     let output = Command::new(PACK)
-        .arg(&path)
+        .arg(scene)
         .arg("--out")
-        .arg(&out)
+        .arg(out)
+        .args(extra)
         .output()
         .unwrap();
     assert_success(&output);
-    (work, out)
 }
 
 /// The scene of [`small_box`], written in a new work directory.
@@ -601,15 +607,16 @@ fn a_sleeper_a_thousand_stones_heavy_is_carried_and_the_bed_settles() {
     assert_ne!(heavy, scene, "the concrete's density is in the scene");
     std::fs::write(&path, heavy).unwrap();
     let out = work.path().join("out");
-    let output = Command::new(PACK)
-        .arg(&path)
-        .arg("--out")
-        .arg(&out)
-        .args(["--set", "deposit.finish_sweeps=100"])
-        .args(["--set", "deposit.max_phase_time=\"2 s\""])
-        .output()
-        .unwrap();
-    assert_success(&output);
+    pack_into(
+        &path,
+        &out,
+        &[
+            "--set",
+            "deposit.finish_sweeps=100",
+            "--set",
+            "deposit.max_phase_time=\"2 s\"",
+        ],
+    );
     let f = figures(&out);
     // 0.1 × 0.2 × 0.06 m at 96 000 kg/m³ = 115.2 kg over 100 mean stones of the family
     // (0.123 kg: the quick bed's 13 kg sleepers are scaled by 1.057): ≈ 9.4.
@@ -640,14 +647,7 @@ fn rounded_stones_pack_apart_by_their_rounding_and_ballast_nscd_reads_it() {
     // experimental; docs/pack.md, "Rounded stones").
     let (work, path) = small_box_scene("0.1 m", "", "");
     let out = work.path().join("out");
-    let output = Command::new(PACK)
-        .arg(&path)
-        .arg("--out")
-        .arg(&out)
-        .args(["--set", "stones.round=\"2 mm\""])
-        .output()
-        .unwrap();
-    assert_success(&output);
+    pack_into(&path, &out, &["--set", "stones.round=\"2 mm\""]);
     let f = figures(&out);
     assert_eq!(f["settled"], true, "{}", f["phases"]);
     assert!(figure(&f, "max_interpenetration_over_d50") < 1e-3);

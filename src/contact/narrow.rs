@@ -810,13 +810,14 @@ fn pair_contacts(first: Side, second: Side, alert: f64, out: &mut Vec<ContactPoi
     // Rounded shapes: the hulls' contacts within the alert distance plus the roundings,
     // each gap less them, the point midway between the rounded surfaces.
     let (round_a, round_b) = (a.1.round(), shape_b.round());
+    let rounded = round_a + round_b > 0.0;
     let hull_alert = alert + round_a + round_b;
     let mut local = Vec::new();
     let size = match a.1 {
         Collider::Convex(shape_a) => {
             let size = shape_a.bounding_radius().max(shape_b.bounding_radius());
             convex_convex_contacts(&pos12, shape_a, shape_b, hull_alert, size, &mut local);
-            if round_a + round_b > 0.0 {
+            if rounded {
                 closest_hull_points(&pos12, shape_a, shape_b, hull_alert, size, &mut local);
             }
             size
@@ -828,7 +829,6 @@ fn pair_contacts(first: Side, second: Side, alert: f64, out: &mut Vec<ContactPoi
     };
     let merge = 1e-6 * size;
     let start = out.len();
-    let rounded = round_a + round_b > 0.0;
     for p in &local {
         // A point of hulls apart is, on rounded shapes, two spheres of the roundings
         // centred on the hulls' points: their distance, along the line between them.
@@ -1039,6 +1039,39 @@ mod tests {
         (a, b, [ra, rb], unit())
     }
 
+    /// A random pair of stone-like hulls (20 points on an ellipsoid, [`random_pair`]),
+    /// the second moved along a random direction (by at most `reach`, bisection) until
+    /// GJK/EPA (parry) gives the signed distance `target`: the two shapes, their poses
+    /// and the signed distance reached (`None` if parry gives none).
+    fn pair_at_distance(
+        unit: &mut dyn FnMut() -> Vector3<f64>,
+        target: f64,
+        reach: f64,
+    ) -> Option<(ConvexShape, ConvexShape, [Isometry3<f64>; 2], f64)> {
+        use parry3d_f64::query::details::contact_support_map_support_map;
+        let (a, b, [ra, rb], direction) = random_pair(unit, 20, Vector3::new(0.03, 0.02, 0.015));
+        let signed = |t: f64| {
+            let pos12 = Isometry3::from_parts(Translation3::identity(), ra).inverse()
+                * Isometry3::from_parts(Translation3::from(direction * t), rb);
+            contact_support_map_support_map(&pos12, &a, &b, 1.0).map(|c| c.dist)
+        };
+        // Bisection on the offset for the target signed distance.
+        let (mut lo, mut hi) = (0.0, reach);
+        for _ in 0..100 {
+            let mid = 0.5 * (lo + hi);
+            match signed(mid) {
+                Some(d) if d < target => lo = mid,
+                _ => hi = mid,
+            }
+        }
+        let d = signed(hi)?;
+        let poses = [
+            Isometry3::from_parts(Translation3::identity(), ra),
+            Isometry3::from_parts(Translation3::from(direction * hi), rb),
+        ];
+        Some((a, b, poses, d))
+    }
+
     #[test]
     fn random_hulls_report_their_closest_or_deepest_point() {
         // Random stone-like hulls (20 points on an ellipsoid) at random orientations,
@@ -1047,33 +1080,14 @@ mod tests {
         // never missed, nor reported farther than it is), and when the hulls are apart
         // no point may claim an overlap. parry's own manifold clipped the support
         // features along GJK's normal and could report only points gaps above d.
-        use parry3d_f64::query::details::contact_support_map_support_map;
         let mut unit = unit_vectors(0x2545_f491_4f6c_dd1du64);
         let mut checked = 0;
         for _ in 0..200 {
-            let (a, b, [ra, rb], direction) =
-                random_pair(&mut unit, 20, Vector3::new(0.03, 0.02, 0.015));
             let target = [-1e-3, -1e-5, 1e-5, 1e-3][checked % 4];
-            let signed = |t: f64| {
-                let pos12 = Isometry3::from_parts(Translation3::identity(), ra).inverse()
-                    * Isometry3::from_parts(Translation3::from(direction * t), rb);
-                contact_support_map_support_map(&pos12, &a, &b, 1.0).map(|c| c.dist)
+            let Some((a, b, poses, d)) = pair_at_distance(&mut unit, target, 0.1) else {
+                continue;
             };
-            // Bisection on the offset for the target signed distance.
-            let (mut lo, mut hi) = (0.0, 0.1);
-            for _ in 0..100 {
-                let mid = 0.5 * (lo + hi);
-                match signed(mid) {
-                    Some(d) if d < target => lo = mid,
-                    _ => hi = mid,
-                }
-            }
-            let Some(d) = signed(hi) else { continue };
-            let poses = [
-                Isometry3::from_parts(Translation3::identity(), ra),
-                Isometry3::from_parts(Translation3::from(direction * hi), rb),
-            ];
-            let (ca, cb) = (Collider::Convex(a.clone()), Collider::Convex(b.clone()));
+            let (ca, cb) = (Collider::Convex(a), Collider::Convex(b));
             let contacts = detect(&[&ca, &cb], &poses, &[true, true], 2e-3);
             let least = contacts.iter().map(|c| c.gap).fold(f64::INFINITY, f64::min);
             assert!(least <= d + 1e-9, "d {d}, least gap {least}: {contacts:?}");
@@ -1094,35 +1108,17 @@ mod tests {
         // are d apart (parry), d between 0 and 2r + the alert distance: the rounded
         // shapes are d − 2r apart, and the detected points must include one at least
         // that close.
-        use parry3d_f64::query::details::contact_support_map_support_map;
         let r = 6e-3;
         let mut unit = unit_vectors(0x9e37_79b9_7f4a_7c15u64);
         let mut checked = 0;
         for k in 0..200 {
-            let (a, b, [ra, rb], direction) =
-                random_pair(&mut unit, 20, Vector3::new(0.03, 0.02, 0.015));
             let target = [1e-4, 3e-3, 6e-3, 1.19e-2, 1.3e-2][k % 5];
-            let signed = |t: f64| {
-                let pos12 = Isometry3::from_parts(Translation3::identity(), ra).inverse()
-                    * Isometry3::from_parts(Translation3::from(direction * t), rb);
-                contact_support_map_support_map(&pos12, &a, &b, 1.0).map(|c| c.dist)
+            let Some((a, b, poses, d)) = pair_at_distance(&mut unit, target, 0.2) else {
+                continue;
             };
-            let (mut lo, mut hi) = (0.0, 0.2);
-            for _ in 0..100 {
-                let mid = 0.5 * (lo + hi);
-                match signed(mid) {
-                    Some(d) if d < target => lo = mid,
-                    _ => hi = mid,
-                }
-            }
-            let Some(d) = signed(hi) else { continue };
-            let poses = [
-                Isometry3::from_parts(Translation3::identity(), ra),
-                Isometry3::from_parts(Translation3::from(direction * hi), rb),
-            ];
             let (ca, cb) = (
-                Collider::Convex(a.clone().rounded(r)),
-                Collider::Convex(b.clone().rounded(r)),
+                Collider::Convex(a.rounded(r)),
+                Collider::Convex(b.rounded(r)),
             );
             let contacts = detect(&[&ca, &cb], &poses, &[true, true], 2e-3);
             let least = contacts.iter().map(|c| c.gap).fold(f64::INFINITY, f64::min);
@@ -1171,7 +1167,7 @@ mod tests {
             }
             let d = distance(hi);
             assert!(d > alert, "{d}");
-            let (ca, cb) = (Collider::Convex(a.clone()), Collider::Convex(b.clone()));
+            let (ca, cb) = (Collider::Convex(a), Collider::Convex(b));
             let contacts = detect(&[&ca, &cb], &[pose_a, pose_b(hi)], &[true, true], alert);
             assert!(
                 contacts.is_empty(),

@@ -138,9 +138,6 @@ impl BodyShape {
     /// The largest distance of a point of the body from the frame's origin: of a vertex,
     /// plus the collider's rounding (zero for a half-space).
     pub fn bounding_radius(&self) -> f64 {
-        if self.vertices.is_empty() {
-            return 0.0;
-        }
         self.vertices
             .iter()
             .map(|p| p.coords.norm())

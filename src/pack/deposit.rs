@@ -117,6 +117,11 @@ pub struct SleeperModel {
     pub level: bool,
 }
 
+/// Mean stone volume of a (non-empty) family (m³).
+fn mean_volume(family: &[StoneShape]) -> f64 {
+    family.iter().map(|s| s.shape.volume).sum::<f64>() / family.len() as f64
+}
+
 /// `body` held where it is: a static body of the same shape, material and pose.
 pub(super) fn hold(body: &Body) -> Body {
     Body::fixed(
@@ -220,9 +225,7 @@ impl DepositSetup {
         sleeper_mass: f64,
         ratio: f64,
     ) -> f64 {
-        let mean_volume =
-            family.iter().map(|s| s.shape.volume).sum::<f64>() / family.len().max(1) as f64;
-        (sleeper_mass / (ratio * stone_density * mean_volume)).max(1.0)
+        (sleeper_mass / (ratio * stone_density * mean_volume(family))).max(1.0)
     }
 }
 
@@ -450,8 +453,7 @@ impl Deposition {
 
     /// Mean stone volume of the family (m³).
     pub fn mean_stone_volume(&self) -> f64 {
-        let f = &self.setup.family;
-        f.iter().map(|s| s.shape.volume).sum::<f64>() / f.len() as f64
+        mean_volume(&self.setup.family)
     }
 
     fn step(
