@@ -212,7 +212,10 @@ pub struct DepositSetup {
     /// For the final settle the sleepers are held where they rest (as their rails hold
     /// them in track): its NLGS, without drag, then converges as on a bed of stones
     /// alone. Free, a sleeper hundreds of times heavier than the stones keeps it from
-    /// converging (docs/pack.md, "Heavy sleepers").
+    /// converging (docs/pack.md, "Heavy sleepers"). When false, the free sleepers
+    /// carry only their scaled weight in the final settle (see `light_sleepers`): the
+    /// choice for rounded stones, which jam against a held sleeper (docs/pack.md,
+    /// "Rounded stones").
     pub hold_sleepers: bool,
 }
 
@@ -476,7 +479,7 @@ impl Deposition {
             }
         }
         let scale = self.setup.sleeper_inertia_scale;
-        if scale > 1.0 {
+        if scale > 1.0 && !self.light_sleepers() {
             // The part of the sleepers' weight their scaled mass does not carry.
             let extra = (scale - 1.0) * self.setup.params.dt * self.setup.params.gravity;
             for (b, r) in self.bodies.iter_mut().zip(&self.roles) {
@@ -506,6 +509,16 @@ impl Deposition {
         observe.step(&record, &self.bodies, &self.roles);
         self.stopped |= observe.stop();
         report
+    }
+
+    /// Whether the free sleepers carry only their scaled weight (1/k of the true one,
+    /// k = [`DepositSetup::sleeper_inertia_scale`]) in this step: in the final settle
+    /// (finishing, the floor still) when they are not held
+    /// ([`DepositSetup::hold_sleepers`]). The bed's geometry is already made; what the
+    /// final settle needs is rest, and a sleeper k times lighter yields where a held
+    /// one would jam stones against it (docs/pack.md, "Rounded stones").
+    fn light_sleepers(&self) -> bool {
+        self.finishing && !self.vibrating && !self.setup.hold_sleepers
     }
 
     /// Hands the bed to the observer between two steps of a loop; false when the run

@@ -213,8 +213,8 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
     let round = scene.stones.round.map_or(0.0, |r| r.si());
     if round > 0.0 {
         println!(
-            "ballast-pack: stones.round is experimental: with held sleepers the quick bed \
-             does not settle, with deposit.hold_sleepers=false it does (docs/pack.md, \
+            "ballast-pack: stones.round is experimental; the sleepers settle free for the \
+             final settle unless deposit.hold_sleepers = true (docs/pack.md, \
              \"Rounded stones\")"
         );
     }
@@ -333,7 +333,7 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
         ddm,
         profile,
         sleeper_inertia_scale,
-        hold_sleepers: d.hold_sleepers,
+        hold_sleepers: d.hold_sleepers.unwrap_or(round == 0.0),
     };
     let placed: Vec<(SleeperModel, [f64; 2])> = match &sleeper {
         Some(source) => nominal

@@ -45,6 +45,8 @@
 //! sleeper_mass_ratio = 100              # a sleeper's inertia at most this × the mean
 //!                                       # stone's mass while packing, its weight kept
 //! hold_sleepers = true                  # held where they rest for the final settle
+//!                                       # (default; false with stones.round: free,
+//!                                       # carrying 1/k of their weight)
 //! ddm = { driver = "synchronous" }      # DDM of the solve (crate::scene::DdmSpec;
 //!                                       # default: one slab per sleeper)
 //!
@@ -238,9 +240,12 @@ pub struct DepositSpec {
     #[serde(default = "default_sleeper_mass_ratio")]
     pub sleeper_mass_ratio: f64,
     /// The sleepers are held where they rest, as their rails hold them, for the final
-    /// settle (default true; docs/pack.md, "Heavy sleepers").
-    #[serde(default = "yes")]
-    pub hold_sleepers: bool,
+    /// settle (docs/pack.md, "Heavy sleepers"); when not, they settle free with their
+    /// scaled weight. Default: held for bare stones, free for rounded ones
+    /// (`stones.round`), which jam against a held sleeper (docs/pack.md, "Rounded
+    /// stones").
+    #[serde(default)]
+    pub hold_sleepers: Option<bool>,
     /// Domain decomposition of the contact solve (default: synchronous, one slab per
     /// sleeper).
     #[serde(default)]
@@ -292,10 +297,6 @@ pub struct OutputSpec {
 /// The seed's n_DDM for its Table 3 case (seed 000 §4.2).
 fn default_finish_sweeps() -> usize {
     500
-}
-
-fn yes() -> bool {
-    true
 }
 
 /// Sleepers' inertia at most 100 stones' (docs/pack.md, "Heavy sleepers").
