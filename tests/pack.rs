@@ -402,6 +402,23 @@ fn ballast_nscd_builds_the_bed_from_the_packing() {
     assert_holds_ten_steps(&n);
     let mean = figure(&n, "final_mean_interpenetration_over_d50");
     assert!(mean < 1e-3, "mean overlap after 10 steps {mean} d50");
+    // It starts warm: ballast-pack wrote the impulses of its last step at the final
+    // configuration (contacts.csv), and ballast-nscd's first detection, on the same
+    // bed, finds its points again: at least 95 % of the first step's contacts are
+    // warm-started (measured 7 468 of 7 524; the rest are points the final step had
+    // not solved, within the restart's alert distance). A cold start has none.
+    let packing_text = std::fs::read_to_string(dir.join("packing.toml")).unwrap();
+    assert!(packing_text.contains("contacts = \"contacts.csv\""));
+    let residuals = std::fs::read_to_string(out.join("residuals.csv")).unwrap();
+    let first: Vec<f64> = residuals
+        .lines()
+        .nth(1)
+        .unwrap()
+        .split(',')
+        .map(|v| v.parse().unwrap())
+        .collect();
+    let (contacts, warm) = (first[1], first[2]);
+    assert!(warm >= 0.95 * contacts, "{warm} of {contacts} warm-started");
 }
 
 #[test]
@@ -444,6 +461,28 @@ fn malformed_packings_give_one_line_errors() {
     std::fs::write(&packing, &good).unwrap();
     let scene = packing_scene(work.path(), &packing, 1);
     assert_success(&run_nscd(&scene, &work.path().join("out")));
+    // Its contact impulses (`contacts`, for a warm start): a missing file, and a bad
+    // row named by its line.
+    let with_contacts = good.replace(
+        "sides = \"walls\"",
+        "sides = \"walls\"\ncontacts = \"c.csv\"",
+    );
+    std::fs::write(&packing, &with_contacts).unwrap();
+    let output = run_nscd(&scene, &work.path().join("out"));
+    common::assert_one_line_error(&output, 1, &["c.csv"]);
+    let header = "a,b,x_m,y_m,z_m,impulse_x_Ns,impulse_y_Ns,impulse_z_Ns";
+    for (rows, what) in [
+        (
+            "wall 0,stone 0,0.2,0.0,0.0,0.0,0.0,0.01\nwall 0,stone 0,0.2,0.0",
+            "line 3",
+        ),
+        ("wall 0,tine 0,0.2,0.0,0.0,0.0,0.0,0.01", "line 2"),
+        ("wall 0,stone 1,0.2,0.0,0.0,0.0,0.0,0.01", "stone 1"),
+    ] {
+        std::fs::write(work.path().join("c.csv"), format!("{header}\n{rows}\n")).unwrap();
+        let output = run_nscd(&scene, &work.path().join("out"));
+        common::assert_one_line_error(&output, 1, &["c.csv", what]);
+    }
 }
 
 /// Runs ballast-pack on the base scene made a 0.3 × 0.3 m box, `depth` deep (under

@@ -17,6 +17,7 @@ use nalgebra::{Isometry3, Point3, Unit, Vector3};
 use super::body::{Body, BodyShape, Motion};
 use super::motion::{mesh_pieces, Pieces};
 use super::scene::{read_stone_shape, StoneShape};
+use crate::pack::contacts::BodyRef;
 use crate::pack::Packing;
 use crate::{Error, Result};
 
@@ -43,10 +44,38 @@ pub struct PackedMaterials {
 /// The bodies of a packing: boundaries, sleepers, stones, in that order.
 #[derive(Debug, Clone)]
 pub struct PackedBodies {
-    /// The bodies.
+    /// The bodies: the walls, the sleepers, the stones.
     pub bodies: Vec<Body>,
     /// Equivalent-sphere diameters of the stones (m), in body order.
     pub stone_diameters: Vec<f64>,
+    /// Where each kind of body is among them.
+    pub layout: PackedLayout,
+}
+
+/// Where a packing's bodies are in a body list: from `offset`, its walls, then its
+/// sleepers, then its stones.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PackedLayout {
+    /// Index of the first.
+    pub offset: usize,
+    /// Walls (0 without a wall material).
+    pub walls: usize,
+    /// Sleepers (0 without a sleeper material).
+    pub sleepers: usize,
+    /// Stones.
+    pub stones: usize,
+}
+
+impl PackedLayout {
+    /// Index of a body the packing names (`None`: not built).
+    pub fn index(&self, body: BodyRef) -> Option<usize> {
+        let (first, count, k) = match body {
+            BodyRef::Wall(k) => (0, self.walls, k),
+            BodyRef::Sleeper(k) => (self.walls, self.sleepers, k),
+            BodyRef::Stone(k) => (self.walls + self.sleepers, self.stones, k),
+        };
+        (k < count).then_some(self.offset + first + k)
+    }
 }
 
 /// The floor (a half-space through `floor`, normal +z) and the walls of the box
@@ -104,6 +133,7 @@ pub fn packed_bodies(
             wall,
         ));
     }
+    let walls = bodies.len();
     let mesh_error =
         |i: usize, e: Error| Error::invalid(path, format!("key mesh[{i}].file: {}", one_line(&e)));
     if let Some(stuff) = materials.sleepers {
@@ -140,6 +170,7 @@ pub fn packed_bodies(
             );
         }
     }
+    let sleepers = bodies.len() - walls;
     let mut shapes: Vec<Option<StoneShape>> = vec![None; packing.meshes.len()];
     let mut stone_diameters = Vec::with_capacity(packing.stones.len());
     for (k, s) in packing.stones.iter().enumerate() {
@@ -166,9 +197,16 @@ pub fn packed_bodies(
             s.pose() * stone.mesh_pose,
         ));
     }
+    let layout = PackedLayout {
+        offset: 0,
+        walls,
+        sleepers,
+        stones: bodies.len() - walls - sleepers,
+    };
     Ok(PackedBodies {
         bodies,
         stone_diameters,
+        layout,
     })
 }
 

@@ -30,6 +30,7 @@ use super::step::{MoreauJean, SolvedContact, StepParams};
 use crate::contact::Collider;
 use crate::ddm::Partitioning;
 use crate::output::{write_json, CsvSeries, Grid, PvdWriter};
+use crate::pack::contacts::warm_memory;
 use crate::scene::{PhaseTimer, RunContext, Summary};
 use crate::{Error, Result};
 
@@ -62,6 +63,7 @@ pub fn run_with(ctx: &RunContext, resume: bool) -> Result<()> {
         driven,
         tamping,
         period,
+        warm_start,
     } = timer.time("build bodies", || scene.build(&ctx.scene_path))?;
     std::fs::create_dir_all(ctx.out_dir.join("frames")).map_err(|e| Error::io(&ctx.out_dir, e))?;
     let scene_text = toml::to_string(&inputs)
@@ -206,6 +208,17 @@ pub fn run_with(ctx: &RunContext, resume: bool) -> Result<()> {
 
     let mut stats = RunStats::default();
     let mut first_step = 1;
+    if let (None, Some((contacts, layout))) = (&resumed, &warm_start) {
+        let points = pipeline.detect(&bodies);
+        let (memory, matched) = warm_memory(&points, contacts, |r| layout.index(r));
+        pipeline.set_memory(memory);
+        println!(
+            "ballast-nscd: warm start: {matched} of {} contact points take the packing's \
+             impulses ({} stored)",
+            points.len(),
+            contacts.len()
+        );
+    }
     if let Some(c) = resumed {
         pipeline.set_memory(c.restore(&checkpoint_path, &mut bodies)?);
         first_step = c.step + 1;

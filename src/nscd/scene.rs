@@ -87,10 +87,12 @@ use serde::Deserialize;
 
 use super::body::{Body, BodyShape, Motion, Prescribed, PrincipalShape};
 use super::motion::{mesh_pieces, Pieces, VelocityTable};
+use super::packed::PackedLayout;
 use super::step::FrictionTable;
 use crate::contact::Collider;
 use crate::geometry::random::SplitMix;
 use crate::geometry::Period;
+use crate::pack::contacts::PackedContact;
 use crate::scene::{
     Acceleration, Angle, DdmSpec, Density, Frequency, Length, Time, Validate, Validator, Velocity,
 };
@@ -506,6 +508,16 @@ pub struct PackingSpec {
     /// Material of the container's floor and side walls; without it none is added.
     #[serde(default)]
     pub wall_material: Option<String>,
+    /// Start the first step from the packing's contact impulses (its `contacts` file),
+    /// when it has them (default true): a bed packed at rest then stays at rest, where
+    /// a cold start lets it move by up to a millimetre in its first steps
+    /// ([`crate::pack::contacts`]).
+    #[serde(default = "yes")]
+    pub warm_start: bool,
+}
+
+fn yes() -> bool {
+    true
 }
 
 /// `[output]`.
@@ -999,6 +1011,8 @@ pub struct Model {
     pub tamping: Option<super::tamping::TampingPlan>,
     /// Periodicity along the track, from a `"periodic"` packing.
     pub period: Option<Period>,
+    /// A packing's contact impulses and where its bodies are, for a warm first step.
+    pub warm_start: Option<(Vec<PackedContact>, PackedLayout)>,
 }
 
 /// A `[[box]]` or `[[driven]]` of the scene and the bodies it became.
@@ -1156,6 +1170,7 @@ impl NscdScene {
         let mut stone_diameters = Vec::new();
         let mut tamping = None;
         let mut period = None;
+        let mut warm_start = None;
         if let Some(s) = &self.stones {
             let (placed, diameters) = place_stones(self, s, scene_path)?;
             bodies.extend(placed);
@@ -1178,6 +1193,15 @@ impl NscdScene {
                     walls: p.wall_material.as_deref().map(|m| self.material_index(m)),
                 },
             )?;
+            let layout = PackedLayout {
+                offset: bodies.len(),
+                ..packed.layout
+            };
+            if let (true, Some(csv)) = (p.warm_start, &packing.contacts) {
+                let contacts = crate::pack::contacts::read_contacts(csv)?;
+                crate::pack::contacts::check_contacts(csv, &contacts, &packing)?;
+                warm_start = Some((contacts, layout));
+            }
             bodies.extend(packed.bodies);
             stone_diameters.extend(packed.stone_diameters);
             if let Some(t) = &self.tamping {
@@ -1198,6 +1222,7 @@ impl NscdScene {
             driven,
             tamping,
             period,
+            warm_start,
         })
     }
 }

@@ -9,10 +9,12 @@
 //!   coordination number, interpenetration;
 //! - [`profile`]: the track-bed cross-section (crest, shoulders, slopes);
 //! - [`packing`]: the packing file the solvers read;
+//! - [`contacts`]: the contact impulses written with it, for a warm restart;
 //! - [`recorder`]: what the run writes as it goes (CSV, frames, checkpoints);
 //! - [`resume`]: checkpoints, and the bed restored from one (`--resume DIR`);
 //! - [`run`]: `ballast-pack SCENE.toml` (files and summary).
 
+pub mod contacts;
 pub mod deposit;
 pub mod packing;
 pub mod profile;

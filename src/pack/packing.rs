@@ -14,6 +14,8 @@
 //! container_max = [1.8, 0.6, 0.9]
 //! sides = "walls"          # or "periodic": periodic along x (the track), walls in y
 //! crib_top_m = 0.3         # the crib ballast's surface (optional)
+//! contacts = "contacts.csv" # the last step's contact impulses (optional; relative to
+//!                           # the packing file; crate::pack::contacts)
 //!
 //! [[mesh]]                 # mesh files, relative to the packing file
 //! file = "../../meshes/stones/stone_001.msh"
@@ -119,6 +121,10 @@ pub struct Packing {
     /// Level of the crib ballast's struck-off surface (m); absent in older files.
     #[serde(default)]
     pub crib_top_m: Option<f64>,
+    /// The contact impulses of the packing's last step (a CSV, relative to the packing
+    /// file when read; [`super::contacts`]), from which a restart starts warm.
+    #[serde(default)]
+    pub contacts: Option<PathBuf>,
     /// Meshes.
     #[serde(rename = "mesh")]
     pub meshes: Vec<PackedMesh>,
@@ -152,6 +158,9 @@ impl Packing {
         let _ = writeln!(out, "sides = \"{}\"", self.sides);
         if let Some(top) = self.crib_top_m {
             let _ = writeln!(out, "crib_top_m = {top:?}");
+        }
+        if let Some(contacts) = &self.contacts {
+            let _ = writeln!(out, "contacts = {}", quoted(contacts));
         }
         for m in &self.meshes {
             let _ = writeln!(
@@ -203,6 +212,11 @@ impl Packing {
         for m in &mut packing.meshes {
             if m.file.is_relative() {
                 m.file = base.join(&m.file);
+            }
+        }
+        if let Some(c) = &mut packing.contacts {
+            if c.is_relative() {
+                *c = base.join(&*c);
             }
         }
         Ok(packing)
@@ -286,6 +300,7 @@ mod tests {
             container_max: [1.0, 0.5, 1.0 / 3.0],
             sides: "walls".into(),
             crib_top_m: Some(0.25),
+            contacts: Some("contacts.csv".into()),
             meshes: vec![
                 PackedMesh {
                     file: "stones/stone_001.msh".into(),

@@ -20,6 +20,7 @@ use std::time::Instant;
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use serde_json::json;
 
+use super::contacts::{contacts_csv, packed_contacts, BodyRef, CONTACTS_FILE};
 use super::deposit::{bounds, DepositSetup, Deposition, Observer, Role, SleeperModel};
 use super::packing::{PackedMesh, Packing, Placement, PACKING_FORMAT};
 use super::profile::Profile;
@@ -37,7 +38,7 @@ use crate::nscd::motion::{mesh_pieces, Pieces};
 use crate::nscd::run::{grains_grid, Drawn};
 use crate::nscd::scene::{read_stone_shapes, NscdScene, StoneShape};
 use crate::nscd::step::{FrictionTable, StepParams};
-use crate::output::{write_json, write_vtu, Grid, CHECKPOINT_FILE};
+use crate::output::{write_atomic, write_json, write_vtu, Grid, CHECKPOINT_FILE};
 use crate::scene::{PhaseTimer, RunContext, Summary};
 use crate::{Error, Result};
 
@@ -543,6 +544,13 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
         &ctx.out_dir,
     )?;
     packing.crib_top_m = Some(crib_top);
+    // The last step's impulses at the final configuration, for a warm restart.
+    let contacts = packed_contacts(&bed.detect(), bed.last_contacts(), &body_refs(&bed.roles));
+    write_atomic(
+        ctx.out_dir.join(CONTACTS_FILE),
+        contacts_csv(&contacts).as_bytes(),
+    )?;
+    packing.contacts = Some(CONTACTS_FILE.into());
     packing.write(&ctx.out_dir.join("packing.toml"))?;
     let (stones, sleepers) = split(&bed.bodies, &bed.roles);
     write_vtu(
@@ -694,6 +702,24 @@ fn boxes_grid(boxes: &[Compactness]) -> Result<Grid> {
     Ok(grid)
 }
 
+/// The packing's name for each body: walls, sleepers and stones each numbered in body
+/// order, as [`packing_of`] lists them.
+fn body_refs(roles: &[Role]) -> Vec<BodyRef> {
+    let mut counts = [0usize; 3];
+    roles
+        .iter()
+        .map(|r| {
+            let (slot, make): (usize, fn(usize) -> BodyRef) = match r {
+                Role::Boundary => (0, BodyRef::Wall),
+                Role::Sleeper(_) => (1, BodyRef::Sleeper),
+                Role::Stone(_) => (2, BodyRef::Stone),
+            };
+            counts[slot] += 1;
+            make(counts[slot] - 1)
+        })
+        .collect()
+}
+
 /// The packing file's content: mesh paths relative to the output directory.
 fn packing_of(
     scene: &BedScene,
@@ -751,6 +777,7 @@ fn packing_of(
         container_max: [bed.setup.length, 0.5 * bed.setup.width, top],
         sides: scene.bed.sides.clone(),
         crib_top_m: None,
+        contacts: None,
         meshes,
         stones,
         sleepers,
