@@ -256,7 +256,7 @@ fn the_same_seed_gives_the_same_packing_on_one_and_two_threads() {
         );
     }
     // ballast-nscd reads it periodic: floor and two side walls only, and the bed holds
-    // for 10 steps as the walled quick bed does (below the free-fall bound).
+    // for 10 steps (below the free-fall bound).
     let (_work, _, n) = nscd_on_packing(&two.join("packing.toml"), 10);
     assert_eq!(figure(&n, "bodies"), 3.0 + 2.0 + figure(&f, "grains"));
     assert_holds_ten_steps(&n);
@@ -394,12 +394,13 @@ fn ballast_nscd_builds_the_bed_from_the_packing() {
         .map(|(a, b)| (a - b).abs())
         .fold(0.0, f64::max);
     assert!(worst < 1e-12, "vertices differ by up to {worst} m");
-    // Restarted cold (the packing carries no contact impulses), 10 steps of NLGS capped
-    // at 300 sweeps do not converge on a heap of 500 stones (docs/nscd.md: cold stacks
-    // need far more), so the bed sags a little; but it holds: no body point moves as
-    // far as free fall would take it in 0.02 s (½ g t² = 1.96 mm; measured ≈ 1 mm), and
-    // the mean overlap stays below 0.1 % of d50.
-    assert_holds_ten_steps(&n);
+    // The packing ends at rest with its sleepers free (the release) and carries its
+    // last impulses, so the restart holds: over its 10 steps no body point moves
+    // farther than the pack's own settle test lets one move, 4 × 5 mm/s for 0.02 s =
+    // 0.4 mm (measured 0.22 mm; before the release and the warm start it was 1.94 mm,
+    // free fall's 1.96 mm), and the mean overlap stays below 0.1 % of d50.
+    let drift = figure(&n, "max_drift_m");
+    assert!(drift < 4.0 * 5e-3 * 0.02, "max drift in 10 steps {drift} m");
     let mean = figure(&n, "final_mean_interpenetration_over_d50");
     assert!(mean < 1e-3, "mean overlap after 10 steps {mean} d50");
     // It starts warm: ballast-pack wrote the impulses of its last step at the final
@@ -605,7 +606,8 @@ fn the_layer_is_compacted_before_the_sleeper_is_laid() {
             "settle after compaction",
             "lower sleepers",
             "crib",
-            "final settle"
+            "final settle",
+            "release"
         ]
     );
     assert!(figure(&f, "floor_offset_m").abs() < 1e-12);
@@ -614,8 +616,8 @@ fn the_layer_is_compacted_before_the_sleeper_is_laid() {
     assert_eq!(figure(&f, "stones_outside"), 0.0);
     assert!(figure(&f, "max_interpenetration_over_d50") < 1e-3);
     // The NLGS sweep cap: `max_sweeps` (100) while the drag is on, `finish_sweeps`
-    // (500 by default) in the final settle, the last phase of deposit.csv; on this bed
-    // the solve stops on the cap at some steps of each.
+    // (500 by default) in the final settle and the release, the last two phases of
+    // deposit.csv; on this bed the solve stops on the cap at some steps of each.
     let csv = std::fs::read_to_string(out.join("deposit.csv")).unwrap();
     let rows: Vec<Vec<f64>> = csv
         .lines()
@@ -625,7 +627,7 @@ fn the_layer_is_compacted_before_the_sleeper_is_laid() {
     let last = rows.last().unwrap()[1];
     let cap = |finishing: bool| {
         rows.iter()
-            .filter(|r| (r[1] == last) == finishing)
+            .filter(|r| (r[1] >= last - 1.0) == finishing)
             .map(|r| r[4])
             .fold(0.0, f64::max)
     };
@@ -679,10 +681,18 @@ fn a_sleeper_a_thousand_stones_heavy_is_carried_and_the_bed_settles() {
         let support = phase["sleeper_support_over_weight"][0].as_f64().unwrap();
         assert!((0.9..1.1).contains(&support), "{name}: support {support}");
     }
-    // Held for the final settle: no free sleeper to report there.
-    let last = phases.last().unwrap();
-    assert_eq!(last["name"], "final settle");
-    assert!(last["sleeper_support_over_weight"].is_null(), "{last}");
+    // Held for the final settle: no free sleeper to report there. Then released, it
+    // rests on the bed with its scaled weight, m g dt / k, within 10 %.
+    let settle = &phases[phases.len() - 2];
+    assert_eq!(settle["name"], "final settle");
+    assert!(settle["sleeper_support_over_weight"].is_null(), "{settle}");
+    let release = phases.last().unwrap();
+    assert_eq!(release["name"], "release");
+    let support = release["sleeper_support_over_weight"][0].as_f64().unwrap() * scale;
+    assert!(
+        (0.9..1.1).contains(&support),
+        "release: support × k {support}"
+    );
 }
 
 #[test]

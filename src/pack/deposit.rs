@@ -217,6 +217,9 @@ pub struct DepositSetup {
     /// choice for rounded stones, which jam against a held sleeper (docs/pack.md,
     /// "Rounded stones").
     pub hold_sleepers: bool,
+    /// After the final settle, held sleepers are freed and the bed settles again with
+    /// them ([`Deposition::release_sleepers`]).
+    pub release_sleepers: bool,
 }
 
 impl DepositSetup {
@@ -512,13 +515,13 @@ impl Deposition {
     }
 
     /// Whether the free sleepers carry only their scaled weight (1/k of the true one,
-    /// k = [`DepositSetup::sleeper_inertia_scale`]) in this step: in the final settle
-    /// (finishing, the floor still) when they are not held
-    /// ([`DepositSetup::hold_sleepers`]). The bed's geometry is already made; what the
-    /// final settle needs is rest, and a sleeper k times lighter yields where a held
-    /// one would jam stones against it (docs/pack.md, "Rounded stones").
+    /// k = [`DepositSetup::sleeper_inertia_scale`]) in this step: in the finishing
+    /// phases with the floor still (the final settle when they are not held, the
+    /// release). The bed's geometry is already made under their true weight; what these
+    /// phases need is rest, which the solve reaches under a sleeper k times lighter
+    /// (docs/pack.md, "Heavy sleepers", "Rounded stones").
     fn light_sleepers(&self) -> bool {
-        self.finishing && !self.vibrating && !self.setup.hold_sleepers
+        self.finishing && !self.vibrating
     }
 
     /// Hands the bed to the observer between two steps of a loop; false when the run
@@ -922,7 +925,8 @@ impl Deposition {
     /// vertical: a few µm on a settled bed). Idempotent: a resumed run calls it again.
     /// Returns each newly held sleeper's lift (m), in sleeper order.
     pub fn hold_sleepers(&mut self) -> Vec<f64> {
-        if !self.setup.hold_sleepers {
+        // A bed resumed past the final settle may have released them again.
+        if !self.setup.hold_sleepers || self.cursor.stages_done > self.calls {
             return Vec::new();
         }
         let free: Vec<usize> = (0..self.bodies.len())
@@ -947,6 +951,43 @@ impl Deposition {
             *b = hold(b);
         }
         free.iter().map(|&i| lift[i]).collect()
+    }
+
+    /// Frees the sleepers held for the final settle ([`Self::hold_sleepers`]) and lets
+    /// the bed settle with them (the "release" phase; a stage of its own, without steps
+    /// or phase when none is held or `release_sleepers` is off). A bed settled under
+    /// held sleepers leans on them: restarted with free ones, as the track and tamping
+    /// scenes use them, the stones against their sides moved by up to 1.7 mm in 10
+    /// steps (docs/pack.md, "Warm restart"). Released, the sleepers keep their scaled
+    /// inertia and carry their scaled weight, m g / k ([`Self::light_sleepers`]): with
+    /// their true weight a heavy sleeper keeps the solve from converging, as in the
+    /// final settle it was held for.
+    pub fn release_sleepers(&mut self, models: &[SleeperModel], observe: &mut dyn Observer) {
+        if !self.begin_stage() {
+            return;
+        }
+        if self.cursor.part == 0 {
+            let mut released = 0;
+            if self.setup.release_sleepers {
+                for i in 0..self.bodies.len() {
+                    if let (Role::Sleeper(k), false) = (self.roles[i], self.bodies[i].is_dynamic())
+                    {
+                        let model = &models[k];
+                        let own = self.bodies[i].pose() * model.frame.inverse();
+                        let name = self.bodies[i].name.clone();
+                        self.bodies[i] = model.body(&name, own, self.setup.sleeper_inertia_scale);
+                        released += 1;
+                    }
+                }
+            }
+            if released == 0 {
+                self.end_stage();
+                return;
+            }
+            self.enter_part(1);
+        }
+        self.settle_part("release", observe);
+        self.end_stage();
     }
 
     /// Places the sleepers (see [`Self::lower_sleepers`]).

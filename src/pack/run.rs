@@ -335,6 +335,7 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
         profile,
         sleeper_inertia_scale,
         hold_sleepers: d.hold_sleepers.unwrap_or(round == 0.0),
+        release_sleepers: d.release_sleepers,
     };
     let placed: Vec<(SleeperModel, [f64; 2])> = match &sleeper {
         Some(source) => nominal
@@ -423,6 +424,8 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
         );
     }
     bed.settle("final settle", observe);
+    let models: Vec<SleeperModel> = placed.iter().map(|(m, _)| m.clone()).collect();
+    bed.release_sleepers(&models, observe);
     recorder.finish()?;
     let wall_deposit = recorder.wall();
     for (name, t) in ["detect", "build", "solve", "update"]

@@ -47,6 +47,7 @@
 //! hold_sleepers = true                  # held where they rest for the final settle
 //!                                       # (default; false with stones.round: free,
 //!                                       # carrying 1/k of their weight)
+//! release_sleepers = true               # then freed (carrying 1/k) and settled again
 //! ddm = { driver = "synchronous" }      # DDM of the solve (crate::scene::DdmSpec;
 //!                                       # default: one slab per sleeper)
 //!
@@ -246,6 +247,12 @@ pub struct DepositSpec {
     /// stones").
     #[serde(default)]
     pub hold_sleepers: Option<bool>,
+    /// After the final settle, held sleepers are freed and the bed settles again with
+    /// them free, carrying their scaled weight (default true): the packing then ends
+    /// at rest as the solvers restart it, with free sleepers (docs/pack.md, "Warm
+    /// restart").
+    #[serde(default = "yes")]
+    pub release_sleepers: bool,
     /// Domain decomposition of the contact solve (default: synchronous, one slab per
     /// sleeper).
     #[serde(default)]
@@ -297,6 +304,10 @@ pub struct OutputSpec {
 /// The seed's n_DDM for its Table 3 case (seed 000 §4.2).
 fn default_finish_sweeps() -> usize {
     500
+}
+
+fn yes() -> bool {
+    true
 }
 
 /// Sleepers' inertia at most 100 stones' (docs/pack.md, "Heavy sleepers").
