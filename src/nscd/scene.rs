@@ -512,12 +512,8 @@ pub struct PackingSpec {
     /// when it has them (default true): a bed packed at rest then stays at rest, where
     /// a cold start lets it move by up to a millimetre in its first steps
     /// ([`crate::pack::contacts`]).
-    #[serde(default = "yes")]
+    #[serde(default = "crate::scene::yes")]
     pub warm_start: bool,
-}
-
-fn yes() -> bool {
-    true
 }
 
 /// `[output]`.

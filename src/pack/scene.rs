@@ -251,7 +251,7 @@ pub struct DepositSpec {
     /// them free, carrying their scaled weight (default true): the packing then ends
     /// at rest as the solvers restart it, with free sleepers (docs/pack.md, "Warm
     /// restart").
-    #[serde(default = "yes")]
+    #[serde(default = "crate::scene::yes")]
     pub release_sleepers: bool,
     /// Domain decomposition of the contact solve (default: synchronous, one slab per
     /// sleeper).
@@ -304,10 +304,6 @@ pub struct OutputSpec {
 /// The seed's n_DDM for its Table 3 case (seed 000 §4.2).
 fn default_finish_sweeps() -> usize {
     500
-}
-
-fn yes() -> bool {
-    true
 }
 
 /// Sleepers' inertia at most 100 stones' (docs/pack.md, "Heavy sleepers").

@@ -40,3 +40,9 @@ pub use quantity::{
 pub use run::{default_out_dir, RunArgs, RunContext};
 pub use summary::{toml_table_to_json, toml_to_json, PhaseTimer, Summary};
 pub use validate::{Validate, Validator};
+
+/// `true`: the serde default of a switch that is on unless the scene turns it off
+/// (`#[serde(default = "crate::scene::yes")]`).
+pub fn yes() -> bool {
+    true
+}
