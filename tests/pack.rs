@@ -13,7 +13,7 @@ use std::process::Command;
 use std::sync::OnceLock;
 
 use ballast::pack::Packing;
-use common::figure;
+use common::{figure, read_csv};
 use serde_json::Value;
 
 const PACK: &str = env!("CARGO_BIN_EXE_ballast-pack");
@@ -410,15 +410,8 @@ fn ballast_nscd_builds_the_bed_from_the_packing() {
     // not solved, within the restart's alert distance). A cold start has none.
     let packing_text = std::fs::read_to_string(dir.join("packing.toml")).unwrap();
     assert!(packing_text.contains("contacts = \"contacts.csv\""));
-    let residuals = std::fs::read_to_string(out.join("residuals.csv")).unwrap();
-    let first: Vec<f64> = residuals
-        .lines()
-        .nth(1)
-        .unwrap()
-        .split(',')
-        .map(|v| v.parse().unwrap())
-        .collect();
-    let (contacts, warm) = (first[1], first[2]);
+    let (_, residuals) = read_csv(&out.join("residuals.csv"));
+    let (contacts, warm) = (residuals[0][1], residuals[0][2]);
     assert!(warm >= 0.95 * contacts, "{warm} of {contacts} warm-started");
 }
 
@@ -618,12 +611,7 @@ fn the_layer_is_compacted_before_the_sleeper_is_laid() {
     // The NLGS sweep cap: `max_sweeps` (100) while the drag is on, `finish_sweeps`
     // (500 by default) in the final settle and the release, the last two phases of
     // deposit.csv; on this bed the solve stops on the cap at some steps of each.
-    let csv = std::fs::read_to_string(out.join("deposit.csv")).unwrap();
-    let rows: Vec<Vec<f64>> = csv
-        .lines()
-        .skip(1)
-        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
-        .collect();
+    let (_, rows) = read_csv(&out.join("deposit.csv"));
     let last = rows.last().unwrap()[1];
     let cap = |finishing: bool| {
         rows.iter()
@@ -654,6 +642,30 @@ fn heavy_box(extra: &[&str]) -> (tempfile::TempDir, PathBuf) {
     (work, out)
 }
 
+/// The heavy box's summary `f`: its inertia scale k is ≈ 9.4 (0.1 × 0.2 × 0.06 m at
+/// 96 000 kg/m³ = 115.2 kg over 100 mean stones of the family, 0.123 kg; the quick
+/// bed's 13 kg sleepers are scaled by 1.057), every phase settled, overlaps below 0.1 %
+/// of d50, no stone outside. Returns k.
+fn assert_heavy_box_settled(f: &Value) -> f64 {
+    let scale = figure(f, "sleeper_inertia_scale");
+    assert!((8.0..11.0).contains(&scale), "inertia scale {scale}");
+    assert_eq!(f["settled"], true, "{}", f["phases"]);
+    assert!(figure(f, "max_interpenetration_over_d50") < 1e-3);
+    assert_eq!(figure(f, "stones_outside"), 0.0);
+    scale
+}
+
+/// The bed carried the phase's (first) sleeper at the end of `phase` with its true
+/// weight over `k`: the upward impulse over m g dt, times k, is 1 within 10 %.
+fn assert_carried(phase: &Value, k: f64) {
+    let support = phase["sleeper_support_over_weight"][0].as_f64().unwrap() * k;
+    assert!(
+        (0.9..1.1).contains(&support),
+        "{}: support × k {support}",
+        phase["name"]
+    );
+}
+
 #[test]
 fn a_sleeper_a_thousand_stones_heavy_is_carried_and_the_bed_settles() {
     // The box's sleeper in concrete 40 times as dense: 115 kg on stones of 0.12 kg
@@ -664,13 +676,7 @@ fn a_sleeper_a_thousand_stones_heavy_is_carried_and_the_bed_settles() {
     // held for the final settle, it settles.
     let (_work, out) = heavy_box(&[]);
     let f = figures(&out);
-    // 0.1 × 0.2 × 0.06 m at 96 000 kg/m³ = 115.2 kg over 100 mean stones of the family
-    // (0.123 kg: the quick bed's 13 kg sleepers are scaled by 1.057): ≈ 9.4.
-    let scale = figure(&f, "sleeper_inertia_scale");
-    assert!((8.0..11.0).contains(&scale), "inertia scale {scale}");
-    assert_eq!(f["settled"], true, "{}", f["phases"]);
-    assert!(figure(&f, "max_interpenetration_over_d50") < 1e-3);
-    assert_eq!(figure(&f, "stones_outside"), 0.0);
+    let scale = assert_heavy_box_settled(&f);
     // The bed carries the sleeper's true weight, not its scaled inertia's: at the end of
     // the lowering and of the crib phases the contacts' upward impulse on it is m g dt
     // within 10 % (a settled bed, rms speed under 5 mm/s, leaves it a deceleration of
@@ -678,8 +684,7 @@ fn a_sleeper_a_thousand_stones_heavy_is_carried_and_the_bed_settles() {
     let phases = f["phases"].as_array().unwrap();
     for name in ["lower sleepers", "crib"] {
         let phase = phases.iter().find(|p| p["name"] == name).unwrap();
-        let support = phase["sleeper_support_over_weight"][0].as_f64().unwrap();
-        assert!((0.9..1.1).contains(&support), "{name}: support {support}");
+        assert_carried(phase, 1.0);
     }
     // Held for the final settle: no free sleeper to report there. Then released, it
     // rests on the bed with its scaled weight, m g dt / k, within 10 %.
@@ -688,11 +693,7 @@ fn a_sleeper_a_thousand_stones_heavy_is_carried_and_the_bed_settles() {
     assert!(settle["sleeper_support_over_weight"].is_null(), "{settle}");
     let release = phases.last().unwrap();
     assert_eq!(release["name"], "release");
-    let support = release["sleeper_support_over_weight"][0].as_f64().unwrap() * scale;
-    assert!(
-        (0.9..1.1).contains(&support),
-        "release: support × k {support}"
-    );
+    assert_carried(release, scale);
 }
 
 #[test]
@@ -704,20 +705,12 @@ fn rounded_stones_settle_round_a_heavy_sleeper_left_free() {
     // carries 1/k of its weight in the final settle, and the bed settles.
     let (_work, out) = heavy_box(&["--set", "stones.round=\"2 mm\""]);
     let f = figures(&out);
-    let scale = figure(&f, "sleeper_inertia_scale");
-    assert!((8.0..11.0).contains(&scale), "inertia scale {scale}");
-    assert_eq!(f["settled"], true, "{}", f["phases"]);
-    assert!(figure(&f, "max_interpenetration_over_d50") < 1e-3);
-    assert_eq!(figure(&f, "stones_outside"), 0.0);
+    let scale = assert_heavy_box_settled(&f);
     // At rest in the final settle the bed carries its scaled weight, m g dt / k, within
     // 10 % (as the true weight in the test above).
     let last = f["phases"].as_array().unwrap().last().unwrap().clone();
     assert_eq!(last["name"], "final settle");
-    let support = last["sleeper_support_over_weight"][0].as_f64().unwrap() * scale;
-    assert!(
-        (0.9..1.1).contains(&support),
-        "final settle: support × k {support}"
-    );
+    assert_carried(&last, scale);
 }
 
 #[test]
@@ -869,12 +862,7 @@ fn tamping_the_quick_bed_packs_ballast_under_the_lifted_sleeper() {
         assert!(value > 0.3 && value < 0.7, "squeeze {key}: {value}");
     }
     // tamping.csv: one row per step, the phases in order, the tines back at the start.
-    let text = std::fs::read_to_string(out.join("tamping.csv")).unwrap();
-    let mut lines = text.lines();
-    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-    let rows: Vec<Vec<f64>> = lines
-        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
-        .collect();
+    let (header, rows) = read_csv(&out.join("tamping.csv"));
     assert_eq!(rows.len() as f64, figure(&f, "steps"));
     let col = |name: &str| header.iter().position(|h| *h == name).expect(name);
     let phase = col("phase");

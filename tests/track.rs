@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::sync::OnceLock;
 
-use common::{assert_one_line_error, figure, read_with_vtk};
+use common::{assert_one_line_error, figure, read_csv, read_with_vtk};
 use serde_json::Value;
 
 const PACK: &str = env!("CARGO_BIN_EXE_ballast-pack");
@@ -108,16 +108,6 @@ fn figures(dir: &Path) -> Value {
     serde_json::from_str::<Value>(&text).unwrap()["figures"].clone()
 }
 
-fn csv(path: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
-    let text = std::fs::read_to_string(path).unwrap();
-    let mut lines = text.lines();
-    let header = lines.next().unwrap().split(',').map(String::from).collect();
-    let rows = lines
-        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
-        .collect();
-    (header, rows)
-}
-
 /// The run is stable, conserves energy, keeps its springs' overlaps physical, loads
 /// the sleeper downwards through its rail seats, and samples the sensors at 10 kHz.
 #[test]
@@ -145,7 +135,7 @@ fn the_quick_track_runs_and_its_sensors_see_the_axle() {
     assert!(figure(&f, "peak_memory_mib") > 0.0);
     assert!(figure(&f, "contact_pairs_per_s") > 0.0);
 
-    let (header, rows) = csv(&dir.join("sensors.csv"));
+    let (header, rows) = read_csv(&dir.join("sensors.csv"));
     for name in ["S1", "S2", "S3", "B1", "B2", "B3"] {
         for c in ["ux_m", "vz_m_per_s", "az_m_per_s2"] {
             assert!(
@@ -164,7 +154,7 @@ fn the_quick_track_runs_and_its_sensors_see_the_axle() {
     }
     // track.csv: the applied load is the file's, on the same clock (t = 0 at the end
     // of settling; both sampled at 10 kHz, so the maxima over the window coincide).
-    let (th, tr) = csv(&dir.join("track.csv"));
+    let (th, tr) = read_csv(&dir.join("track.csv"));
     let rp1 = th.iter().position(|h| h == "rp1_n").unwrap();
     let end = rows.last().unwrap()[0];
     let applied = tr
@@ -172,7 +162,7 @@ fn the_quick_track_runs_and_its_sensors_see_the_axle() {
         .filter(|r| r[0] >= 0.0)
         .map(|r| r[rp1])
         .fold(0.0, f64::max);
-    let (lh, lr) = csv(&inputs().1);
+    let (lh, lr) = read_csv(&inputs().1);
     let l1 = lh.iter().position(|h| h == "Rp1").unwrap();
     let given = lr
         .iter()

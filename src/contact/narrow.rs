@@ -1262,23 +1262,13 @@ mod tests {
         let deep = detect(&[&lower, &upper], &at(2.0 * r - 1e-3), &[true, true], 1e-3);
         assert_eq!(deep.len(), 4);
         assert!(deep.iter().all(|c| (c.gap + 1e-3).abs() < 1e-12));
+        let none_at = |a: &Collider, b: &Collider, distance: f64| {
+            detect(&[a, b], &at(distance), &[true, true], 1e-3).is_empty()
+        };
         // Beyond the alert distance from the rounded faces: nothing.
-        assert!(detect(
-            &[&lower, &upper],
-            &at(2.0 * r + 1.5e-3),
-            &[true, true],
-            1e-3
-        )
-        .is_empty());
+        assert!(none_at(&lower, &upper, 2.0 * r + 1.5e-3));
         // The bare cubes at 10.3 mm: nothing either.
-        let (bare_lower, bare_upper) = (cube(0.5), cube(0.5));
-        assert!(detect(
-            &[&bare_lower, &bare_upper],
-            &at(2.0 * r + 3e-4),
-            &[true, true],
-            1e-3
-        )
-        .is_empty());
+        assert!(none_at(&cube(0.5), &cube(0.5), 2.0 * r + 3e-4));
     }
 
     #[test]

@@ -31,6 +31,7 @@ use std::path::Path;
 use nalgebra::{Point3, Vector3};
 
 use crate::contact::{local_frame, ContactKey, ContactPoint, ImpulseMemory};
+use crate::nscd::packed::container_planes;
 use crate::nscd::step::SolvedContact;
 use crate::pack::Packing;
 use crate::{Error, Result};
@@ -182,10 +183,18 @@ pub fn parse_contacts(path: &Path, text: &str) -> Result<Vec<PackedContact>> {
     Ok(out)
 }
 
-/// Checks that every body `contacts` names is in `packing` (the floor and four walls,
-/// or two with a period along x; its sleepers; its stones): one line naming the row.
+/// Checks that every body `contacts` names is in `packing` (the container's planes as
+/// [`container_planes`] builds them, its sleepers, its stones): one line naming the
+/// row.
 pub fn check_contacts(path: &Path, contacts: &[PackedContact], packing: &Packing) -> Result<()> {
-    let walls = if packing.period().is_some() { 3 } else { 5 };
+    let walls = container_planes(
+        Vector3::zeros(),
+        [0.0, 1.0],
+        [0.0, 1.0],
+        packing.period().is_some(),
+        0,
+    )
+    .len();
     for (i, c) in contacts.iter().enumerate() {
         for body in [c.a, c.b] {
             let (count, what) = match body {

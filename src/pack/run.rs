@@ -548,7 +548,7 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
     )?;
     packing.crib_top_m = Some(crib_top);
     // The last step's impulses at the final configuration, for a warm restart.
-    let contacts = packed_contacts(&bed.detect(), bed.last_contacts(), &body_refs(&bed.roles));
+    let contacts = packed_contacts(&final_contacts, bed.last_contacts(), &body_refs(&bed.roles));
     write_atomic(
         ctx.out_dir.join(CONTACTS_FILE),
         contacts_csv(&contacts).as_bytes(),

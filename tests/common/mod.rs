@@ -107,3 +107,14 @@ pub fn spawn_until_checkpoint(
     std::thread::sleep(after);
     child
 }
+
+/// A numeric CSV written by the tools: its header and its rows.
+pub fn read_csv(path: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    let header = lines.next().unwrap().split(',').map(String::from).collect();
+    let rows = lines
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect();
+    (header, rows)
+}
