@@ -29,7 +29,7 @@ use nalgebra::{Point3, Vector3};
 pub use broad::{candidate_pairs, Candidate};
 pub use frame::local_frame;
 pub use narrow::{detect, Detector};
-pub use shape::{Collider, ConvexShape};
+pub use shape::{Collider, ConvexShape, SphereCluster};
 
 /// A contact's identity from step to step: the two bodies (in the order of the contact)
 /// and the parry feature ids (vertex, edge or face codes) that touch.

@@ -97,6 +97,9 @@ impl Detector {
                 Collider::Convex(shape) => {
                     BroadShape::Bounded(aabb_of(shape.points(), pose).grown(shape.round()))
                 }
+                Collider::Spheres(cluster) => {
+                    BroadShape::Bounded(aabb_of(&cluster.centres, pose).grown(cluster.radius))
+                }
                 Collider::HalfSpace(normal) => BroadShape::HalfSpace(
                     Point3::from(pose.translation.vector),
                     pose.rotation * *normal,
@@ -664,17 +667,17 @@ struct FaceSeparation {
     face: usize,
 }
 
-/// Every hull vertex of `b` within `alert` of the half-space's plane is a contact point
-/// (parry's half-space manifold keeps only the support face's first vertices, which may
-/// miss the deepest vertex of a tilted stone).
+/// Every point of `b` (hull vertices, or sphere centres) within `alert` of the
+/// half-space's plane is a contact point (parry's half-space manifold keeps only the
+/// support face's first vertices, which may miss the deepest vertex of a tilted stone).
 fn halfspace_contacts(
     pos12: &Isometry3<f64>,
     normal: &Unit<Vector3<f64>>,
-    b: &ConvexShape,
+    points: &[Point3<f64>],
     alert: f64,
     out: &mut Vec<LocalContact>,
 ) {
-    for (index, p) in b.points().iter().enumerate() {
+    for (index, p) in points.iter().enumerate() {
         let on_b = pos12 * p;
         let distance = normal.dot(&on_b.coords);
         if distance <= alert {
@@ -688,6 +691,83 @@ fn halfspace_contacts(
                 ],
                 gap: distance,
             });
+        }
+    }
+}
+
+/// The centres of `b`'s spheres against a hull `a` (`pos12`: b's frame in a's): every
+/// centre within `alert` of the hull, with the hull's nearest point and the signed
+/// distance ([`ConvexShape::nearest_point`]). The hull's feature is not tracked (0):
+/// the sphere's index names the point.
+fn hull_point_contacts(
+    pos12: &Isometry3<f64>,
+    a: &ConvexShape,
+    centres: &[Point3<f64>],
+    alert: f64,
+    out: &mut Vec<LocalContact>,
+) {
+    let reach = a.bounding_radius() + alert;
+    for (index, c) in centres.iter().enumerate() {
+        let on_b = pos12 * c;
+        if on_b.coords.norm() > reach {
+            continue;
+        }
+        let (on_a, normal, gap) = a.nearest_point(&on_b);
+        if gap <= alert {
+            out.push(LocalContact {
+                on_a,
+                on_b,
+                normal,
+                features: [0, PackedFeatureId::vertex(index as u32).0],
+                gap,
+            });
+        }
+    }
+}
+
+/// The sphere centres of two clusters within `alert` of each other (`pos12`: b's
+/// frame in a's), each pair a point along the line of the centres. Each side is first
+/// cut to the centres inside the other's box grown by `alert`, so a pair of stones
+/// costs the products of the centres near their meeting place only.
+fn centre_pairs(
+    pos12: &Isometry3<f64>,
+    a: &[Point3<f64>],
+    b: &[Point3<f64>],
+    alert: f64,
+    out: &mut Vec<LocalContact>,
+) {
+    let near = |points: &[(usize, Point3<f64>)], bx: &super::broad::Aabb| {
+        points
+            .iter()
+            .filter(|(_, p)| (0..3).all(|d| p[d] >= bx.min[d] - alert && p[d] <= bx.max[d] + alert))
+            .copied()
+            .collect::<Vec<_>>()
+    };
+    let b_in_a: Vec<(usize, Point3<f64>)> =
+        b.iter().enumerate().map(|(j, p)| (j, pos12 * p)).collect();
+    let a_all: Vec<(usize, Point3<f64>)> = a.iter().copied().enumerate().collect();
+    let b_near = near(&b_in_a, &aabb_of(a, &Isometry3::identity()));
+    if b_near.is_empty() {
+        return;
+    }
+    let b_points: Vec<Point3<f64>> = b_near.iter().map(|(_, p)| *p).collect();
+    let a_near = near(&a_all, &aabb_of(&b_points, &Isometry3::identity()));
+    for &(i, ca) in &a_near {
+        for &(j, cb) in &b_near {
+            let between = cb - ca;
+            let d = between.norm();
+            if d <= alert {
+                out.push(LocalContact {
+                    on_a: ca,
+                    on_b: cb,
+                    normal: if d > 0.0 { between / d } else { Vector3::z() },
+                    features: [
+                        PackedFeatureId::vertex(i as u32).0,
+                        PackedFeatureId::vertex(j as u32).0,
+                    ],
+                    gap: d,
+                });
+            }
         }
     }
 }
@@ -798,35 +878,45 @@ type Side<'a> = (usize, &'a Collider, &'a Isometry3<f64>);
 /// Appends the contact points of one pair. A half-space is always the first body of
 /// its contacts (its normal is the contact normal).
 fn pair_contacts(first: Side, second: Side, alert: f64, out: &mut Vec<ContactPoint>) {
+    // A half-space is always first, and a hull before spheres (its nearest point is a).
     let (a, b) = match (first.1, second.1) {
         (Collider::HalfSpace(_), Collider::HalfSpace(_)) => return,
-        (Collider::Convex(_), Collider::HalfSpace(_)) => (second, first),
+        (_, Collider::HalfSpace(_)) | (Collider::Spheres(_), Collider::Convex(_)) => {
+            (second, first)
+        }
         _ => (first, second),
     };
     let pos12 = a.2.inverse() * b.2;
-    let Collider::Convex(shape_b) = b.1 else {
-        return;
-    };
-    // Rounded shapes: the hulls' contacts within the alert distance plus the roundings,
-    // each gap less them, the point midway between the rounded surfaces.
-    let (round_a, round_b) = (a.1.round(), shape_b.round());
+    // Rounded shapes and spheres: the contacts of the hulls (or centres) within the
+    // alert distance plus the roundings, each gap less them, the point midway between
+    // the rounded surfaces.
+    let (round_a, round_b) = (a.1.round(), b.1.round());
     let rounded = round_a + round_b > 0.0;
     let hull_alert = alert + round_a + round_b;
     let mut local = Vec::new();
-    let size = match a.1 {
-        Collider::Convex(shape_a) => {
-            let size = shape_a.bounding_radius().max(shape_b.bounding_radius());
+    let size_b = b.1.hull().map_or(0.0, ConvexShape::bounding_radius);
+    let size = size_b.max(a.1.hull().map_or(0.0, ConvexShape::bounding_radius));
+    match (a.1, b.1) {
+        (Collider::Convex(shape_a), Collider::Convex(shape_b)) => {
             convex_convex_contacts(&pos12, shape_a, shape_b, hull_alert, size, &mut local);
             if rounded {
                 closest_hull_points(&pos12, shape_a, shape_b, hull_alert, size, &mut local);
             }
-            size
         }
-        Collider::HalfSpace(normal) => {
-            halfspace_contacts(&pos12, normal, shape_b, hull_alert, &mut local);
-            shape_b.bounding_radius()
+        (Collider::HalfSpace(normal), Collider::Convex(shape_b)) => {
+            halfspace_contacts(&pos12, normal, shape_b.points(), hull_alert, &mut local);
         }
-    };
+        (Collider::HalfSpace(normal), Collider::Spheres(b)) => {
+            halfspace_contacts(&pos12, normal, &b.centres, hull_alert, &mut local);
+        }
+        (Collider::Convex(shape_a), Collider::Spheres(b)) => {
+            hull_point_contacts(&pos12, shape_a, &b.centres, hull_alert, &mut local);
+        }
+        (Collider::Spheres(a), Collider::Spheres(b)) => {
+            centre_pairs(&pos12, &a.centres, &b.centres, hull_alert, &mut local);
+        }
+        _ => unreachable!("ordered above"),
+    }
     let merge = 1e-6 * size;
     let start = out.len();
     for p in &local {
@@ -1286,6 +1376,118 @@ mod tests {
             assert!((c.gap - 1e-4).abs() < 1e-12, "{}", c.gap);
             // Midway between the plane and the rounded corner's lowest point.
             assert!((c.point.z - 0.5e-4).abs() < 1e-12, "{}", c.point);
+        }
+    }
+
+    /// The unit cube (half 0.5) with spheres of radius `r` at its eight corners and at
+    /// the centre of each face.
+    fn cube_of_spheres(r: f64) -> Collider {
+        let Collider::Convex(hull) = cube(0.5) else {
+            unreachable!()
+        };
+        let mut centres: Vec<Point3<f64>> = hull.points().to_vec();
+        for d in 0..3 {
+            for s in [-0.5, 0.5] {
+                let mut p = Point3::origin();
+                p[d] = s;
+                centres.push(p);
+            }
+        }
+        Collider::Convex(hull).with_spheres(centres, r).unwrap()
+    }
+
+    #[test]
+    fn sphere_clusters_touch_sphere_by_sphere_along_the_line_of_centres() {
+        let r = 0.012;
+        let (lower, upper) = (cube_of_spheres(r), cube_of_spheres(r));
+        // Stacked face to face, the spheres 0.1 mm apart: five pairs (the four
+        // corners and the face centres, each against its twin; every other pair is
+        // 0.5 m or more apart), each a gap of 0.1 mm, normal +z, midway.
+        let gap = 1e-4;
+        let poses = [
+            Isometry3::identity(),
+            Isometry3::translation(0.0, 0.0, 1.0 + 2.0 * r + gap),
+        ];
+        let contacts = detect(&[&lower, &upper], &poses, &[true, true], 1e-3);
+        assert_eq!(contacts.len(), 5, "{contacts:?}");
+        for c in &contacts {
+            assert!((c.gap - gap).abs() < 1e-12, "{}", c.gap);
+            assert!((c.normal - Vector3::z()).norm() < 1e-12);
+            assert!((c.point.z - (0.5 + r + 0.5 * gap)).abs() < 1e-12);
+        }
+        // Overlapping by 1 mm, shifted sideways by 3 mm: the corner pairs are 3 mm
+        // apart sideways, so the normal tilts and the gap is the centres' distance
+        // less 2r.
+        let dz = 1.0 + 2.0 * r - 1e-3;
+        let poses = [Isometry3::identity(), Isometry3::translation(3e-3, 0.0, dz)];
+        let contacts = detect(&[&lower, &upper], &poses, &[true, true], 1e-3);
+        assert_eq!(contacts.len(), 5);
+        let expected = (dz - 1.0).hypot(3e-3) - 2.0 * r;
+        for c in &contacts {
+            assert!(
+                (c.gap - expected).abs() < 1e-12,
+                "{} against {expected}",
+                c.gap
+            );
+        }
+        // Beyond the alert distance: nothing.
+        let far = [
+            Isometry3::identity(),
+            Isometry3::translation(0.0, 0.0, 1.0 + 2.0 * r + 1.5e-3),
+        ];
+        assert!(detect(&[&lower, &upper], &far, &[true, true], 1e-3).is_empty());
+    }
+
+    #[test]
+    fn a_sphere_cluster_rests_on_a_plane_and_on_a_hull_by_its_spheres() {
+        let r = 0.012;
+        let floor = Collider::HalfSpace(Vector3::z_axis());
+        let block = cube_of_spheres(r);
+        // On the floor 0.1 mm clear: the four lower corners and the bottom face's
+        // centre, each gap 0.1 mm, midway between plane and sphere.
+        let poses = [
+            Isometry3::identity(),
+            Isometry3::translation(0.0, 0.0, 0.5 + r + 1e-4),
+        ];
+        let contacts = detect(&[&floor, &block], &poses, &[false, true], 1e-3);
+        assert_eq!(contacts.len(), 5);
+        for c in &contacts {
+            assert_eq!((c.key.body_a, c.key.body_b), (0, 1));
+            assert!((c.gap - 1e-4).abs() < 1e-12, "{}", c.gap);
+            assert!((c.point.z - 0.5e-4).abs() < 1e-12, "{}", c.point);
+        }
+        // On a bare cube (the hull first, whichever the body order): 0.1 mm clear of
+        // its top face, and sunk with the lower sphere centres 10 mm under the face,
+        // which is then their nearest feature: a gap of −(10 mm + r).
+        let hull = cube(1.0);
+        for (height, gap) in [(1.5 + r + 1e-4, 1e-4), (1.5 - 0.01, -0.01 - r)] {
+            let poses = [
+                Isometry3::translation(0.0, 0.0, height),
+                Isometry3::identity(),
+            ];
+            let contacts = detect(&[&block, &hull], &poses, &[true, true], 1e-3);
+            assert_eq!(contacts.len(), 5, "at {height}: {contacts:?}");
+            for c in &contacts {
+                assert_eq!((c.key.body_a, c.key.body_b), (1, 0), "hull first");
+                assert!((c.gap - gap).abs() < 1e-12, "{} against {gap}", c.gap);
+                assert!((c.normal - Vector3::z()).norm() < 1e-12);
+            }
+        }
+        // Beside the hull's edge, a corner sphere's nearest point is the edge: the
+        // gap is the distance to it less r, along the line from the edge.
+        let hull = cube(0.5);
+        let poses = [
+            Isometry3::identity(),
+            Isometry3::translation(1.0 + 0.01, 0.0, 1.0 + 0.01),
+        ];
+        let contacts = detect(&[&hull, &block], &poses, &[true, true], 0.01);
+        // Two corner spheres (y = ±0.5) face the hull's edge along y.
+        let expected = 0.01f64.hypot(0.01) - r;
+        assert_eq!(contacts.len(), 2, "{contacts:?}");
+        for c in &contacts {
+            assert!((c.gap - expected).abs() < 1e-9, "{}", c.gap);
+            let diagonal = Vector3::new(1.0, 0.0, 1.0).normalize();
+            assert!((c.normal - diagonal).norm() < 1e-9, "{}", c.normal);
         }
     }
 }

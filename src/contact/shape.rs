@@ -1,7 +1,11 @@
 //! Collision shapes of NSCD bodies: convex polyhedra (parry's `ConvexPolyhedron` behind a
-//! support-face rule that keeps whole faces) and half-spaces (planes).
+//! support-face rule that keeps whole faces), clusters of equal spheres (the contact
+//! shape of seed 004's QDEM bodies) and half-spaces (planes).
+
+use std::sync::Arc;
 
 use nalgebra::{Point3, Unit, Vector3};
+use parry3d_f64::query::PointQuery;
 use parry3d_f64::shape::{
     ConvexPolyhedron, PackedFeatureId, PolygonalFeature, PolygonalFeatureMap, SupportMap,
 };
@@ -129,6 +133,42 @@ impl ConvexShape {
     pub fn bounding_radius(&self) -> f64 {
         self.radius
     }
+
+    /// The hull's point nearest to `p` (local), the unit normal from the hull towards
+    /// `p`, and the signed distance (negative inside). Inside, the nearest point lies on
+    /// the nearest face plane (exact for a convex hull); outside, parry's projection.
+    pub fn nearest_point(&self, p: &Point3<f64>) -> (Point3<f64>, Vector3<f64>, f64) {
+        let (mut depth, mut normal) = (f64::NEG_INFINITY, Vector3::z());
+        for (n, offset) in &self.derived.planes {
+            let s = n.dot(&p.coords) - offset;
+            if s > depth {
+                (depth, normal) = (s, *n);
+            }
+        }
+        if depth <= 0.0 {
+            return (p - normal * depth, normal, depth);
+        }
+        let q = self.polyhedron.project_local_point(p, true).point;
+        let d = (p - q).norm();
+        match d {
+            d if d > 0.0 => (q, (p - q) / d, d),
+            _ => (q, normal, 0.0),
+        }
+    }
+}
+
+/// Equal spheres centred at given points of a body: its contact shape where seed 004's
+/// QDEM puts a sphere at every surface vertex (§2.3), so that a bed packed with it
+/// meets the QDEM model's spheres at rest. The hull of the vertices is kept for what
+/// is not contact (volumes in control boxes, pictures).
+#[derive(Debug, Clone)]
+pub struct SphereCluster {
+    /// The convex hull of the body (local).
+    pub hull: ConvexShape,
+    /// The sphere centres (local).
+    pub centres: Arc<[Point3<f64>]>,
+    /// The spheres' radius (m).
+    pub radius: f64,
 }
 
 impl SupportMap for ConvexShape {
@@ -182,20 +222,52 @@ pub enum Collider {
     /// The half-space `{x : n·x ≤ 0}` in the body's frame (its boundary plane passes
     /// through the body's origin, `n` is the outward normal).
     HalfSpace(Unit<Vector3<f64>>),
+    /// Equal spheres at points of the body (inside or on its hull).
+    Spheres(SphereCluster),
 }
 
 impl Collider {
     /// Whether the collider is bounded (a half-space is not).
     pub fn is_bounded(&self) -> bool {
-        matches!(self, Collider::Convex(_))
+        !matches!(self, Collider::HalfSpace(_))
     }
 
-    /// The rounding radius of a polyhedron (0 for a bare one and for a half-space).
+    /// How far the contact shape reaches beyond the hull's vertices: the rounding of a
+    /// polyhedron (0 for a bare one), the spheres' radius, 0 for a half-space.
     pub fn round(&self) -> f64 {
         match self {
             Collider::Convex(shape) => shape.round(),
+            Collider::Spheres(cluster) => cluster.radius,
             Collider::HalfSpace(_) => 0.0,
         }
+    }
+
+    /// The diameter of its spheres (m; 0 for other shapes).
+    pub fn sphere_diameter(&self) -> f64 {
+        match self {
+            Collider::Spheres(cluster) => 2.0 * cluster.radius,
+            _ => 0.0,
+        }
+    }
+
+    /// The body's convex hull (none for a half-space).
+    pub fn hull(&self) -> Option<&ConvexShape> {
+        match self {
+            Collider::Convex(shape) => Some(shape),
+            Collider::Spheres(cluster) => Some(&cluster.hull),
+            Collider::HalfSpace(_) => None,
+        }
+    }
+
+    /// The same body with spheres of `radius` (m) centred at `centres` (local; on or
+    /// inside the hull) as its contact shape; `None` for a half-space.
+    pub fn with_spheres(&self, centres: Vec<Point3<f64>>, radius: f64) -> Option<Collider> {
+        let hull = self.hull()?.clone().rounded(0.0);
+        Some(Collider::Spheres(SphereCluster {
+            hull,
+            centres: centres.into(),
+            radius,
+        }))
     }
 }
 

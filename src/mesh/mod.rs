@@ -48,6 +48,14 @@ pub struct TetMesh {
 }
 
 impl TetMesh {
+    /// The nodes on the boundary, ascending: where seed 004 puts its contact spheres.
+    pub fn surface_nodes(&self) -> Vec<u32> {
+        let mut n: Vec<u32> = self.boundary.iter().flatten().copied().collect();
+        n.sort_unstable();
+        n.dedup();
+        n
+    }
+
     /// Builds a checked mesh from parts made in memory (generated meshes, tests): the
     /// same checks as [`read_msh`] (index range, inverted or zero-volume tetra, dangling
     /// node, overlapping tetrahedra) with 0-based `tetra i` / `node i` in messages, which

@@ -134,6 +134,30 @@ impl BodyShape {
     }
 }
 
+impl PrincipalShape {
+    /// Spheres of `diameter` (m) at every surface node of `mesh` (scaled by `scale`,
+    /// then placed by `input_from_mesh` into the input coordinates of
+    /// [`BodyShape::convex_hull`]) as the contact shape (seed 004's QDEM contact
+    /// spheres); mass and inertia stay the hull's.
+    pub fn with_vertex_spheres(
+        &mut self,
+        mesh: &crate::mesh::TetMesh,
+        input_from_mesh: &Isometry3<f64>,
+        scale: f64,
+        diameter: f64,
+    ) {
+        let local = self.pose.inverse() * input_from_mesh;
+        let centres = mesh
+            .surface_nodes()
+            .iter()
+            .map(|&i| local * (mesh.nodes[i as usize] * scale))
+            .collect();
+        if let Some(spheres) = self.shape.collider.with_spheres(centres, 0.5 * diameter) {
+            self.shape.collider = spheres;
+        }
+    }
+}
+
 impl BodyShape {
     /// The largest distance of a point of the body from the frame's origin: of a vertex,
     /// plus the collider's rounding (zero for a half-space).

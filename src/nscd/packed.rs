@@ -151,9 +151,13 @@ pub fn packed_bodies(
                         .map_err(|e| Error::invalid(path, format!("key mesh[{m}].file: {e}")))?;
                     let points: Vec<Point3<f64>> =
                         pieces[0].1.iter().map(|p| p * spec.scale).collect();
-                    let principal =
+                    let mut principal =
                         BodyShape::convex_hull(&points, &spec.file.display().to_string())
                             .map_err(|e| mesh_error(m, e))?;
+                    if spec.spheres_m > 0.0 {
+                        let identity = Isometry3::identity();
+                        principal.with_vertex_spheres(&mesh, &identity, spec.scale, spec.spheres_m);
+                    }
                     (principal.shape, principal.pose)
                 }
                 _ => unreachable!("Packing::read checks one of mesh or size"),
@@ -185,7 +189,8 @@ pub fn packed_bodies(
             shapes[m] = Some(
                 read_stone_shape(&spec.file, spec.scale)
                     .map_err(|e| mesh_error(m, e))?
-                    .rounded(spec.round_m),
+                    .rounded(spec.round_m)
+                    .with_vertex_spheres(spec.spheres_m),
             );
         }
         let stone = shapes[m].as_ref().expect("read above");

@@ -27,7 +27,6 @@ use super::checkpoint::{Checkpoint, CHECKPOINT_FILE};
 use super::nlgs::{ErrorCheck, NlgsOptions, Stopping};
 use super::scene::{DrivenBody, Model, NscdScene};
 use super::step::{MoreauJean, SolvedContact, StepParams};
-use crate::contact::Collider;
 use crate::ddm::Partitioning;
 use crate::output::{write_json, CsvSeries, Grid, PvdWriter};
 use crate::pack::contacts::warm_memory;
@@ -821,7 +820,7 @@ pub fn grains_grid(bodies: &[Body], drawn: Drawn, subdomains: &[Option<u32>]) ->
             Drawn::Fixed => !body.is_dynamic(),
             Drawn::All => true,
         };
-        if !matches!(body.shape.collider, Collider::Convex(_)) || !wanted {
+        if !body.shape.collider.is_bounded() || !wanted {
             continue;
         }
         let base = points.len();

@@ -89,7 +89,7 @@ use super::body::{Body, BodyShape, Motion, Prescribed, PrincipalShape};
 use super::motion::{mesh_pieces, Pieces, VelocityTable};
 use super::packed::PackedLayout;
 use super::step::FrictionTable;
-use crate::contact::Collider;
+use crate::contact::{Collider, ConvexShape};
 use crate::geometry::random::SplitMix;
 use crate::geometry::Period;
 use crate::pack::contacts::PackedContact;
@@ -1265,6 +1265,9 @@ pub struct StoneShape {
     pub mesh_pose: Isometry3<f64>,
     /// The factor applied to the mesh coordinates.
     pub scale: f64,
+    /// The mesh's surface nodes (scaled mesh coordinates): where
+    /// [`StoneShape::with_vertex_spheres`] centres its spheres.
+    pub surface: Arc<[Point3<f64>]>,
 }
 
 impl StoneShape {
@@ -1278,9 +1281,14 @@ impl StoneShape {
         self.shape.bounding_radius()
     }
 
-    /// The rounding of its collider (m; 0 for the bare hull).
+    /// The rounding of its hull (m; 0 for the bare hull and for vertex spheres).
     pub fn round(&self) -> f64 {
-        self.shape.collider.round()
+        self.shape.collider.hull().map_or(0.0, ConvexShape::round)
+    }
+
+    /// The diameter of its vertex spheres (m; 0 without).
+    pub fn spheres(&self) -> f64 {
+        self.shape.collider.sphere_diameter()
     }
 
     /// The same stone with its collider swept by a sphere of radius `round` (m; see
@@ -1292,6 +1300,22 @@ impl StoneShape {
             let mut shape = (*self.shape).clone();
             shape.collider = Collider::Convex(hull.clone().rounded(round));
             self.shape = Arc::new(shape);
+        }
+        self
+    }
+
+    /// The same stone with spheres of `diameter` (m) at every surface node of its mesh
+    /// as its contact shape (seed 004's QDEM contact spheres; 0 leaves it as it is).
+    /// Mass and inertia stay the hull's.
+    pub fn with_vertex_spheres(mut self, diameter: f64) -> Self {
+        if diameter > 0.0 {
+            let to_local = self.mesh_pose.inverse();
+            let centres = self.surface.iter().map(|p| to_local * p).collect();
+            let mut shape = (*self.shape).clone();
+            if let Some(spheres) = shape.collider.with_spheres(centres, 0.5 * diameter) {
+                shape.collider = spheres;
+                self.shape = Arc::new(shape);
+            }
         }
         self
     }
@@ -1350,11 +1374,17 @@ pub fn read_stone_shape(file: &Path, scale: f64) -> Result<StoneShape> {
             .collect()
     };
     let principal = BodyShape::convex_hull(&points, &file.display().to_string())?;
+    let surface = mesh
+        .surface_nodes()
+        .iter()
+        .map(|&i| mesh.nodes[i as usize] * scale)
+        .collect();
     Ok(StoneShape {
         file: file.to_path_buf(),
         shape: Arc::new(principal.shape),
         mesh_pose: principal.pose,
         scale,
+        surface,
     })
 }
 

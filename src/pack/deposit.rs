@@ -1007,8 +1007,10 @@ impl Deposition {
                 }
             }
             // The sleeper's own frame is level, centred at (x, y), its underside at
-            // `highest + 1 mm` (the highest point of a rounded stone under it).
-            let origin = Isometry3::translation(*x, *y, highest + 1e-3);
+            // `highest + 1 mm` (the highest point of a rounded stone under it), its
+            // contact spheres (if any) clear of it by the same 1 mm.
+            let under = highest + 1e-3 + model.shape.collider.round();
+            let origin = Isometry3::translation(*x, *y, under);
             let body = model.body(
                 &format!("sleeper_{}", k + 1),
                 origin,

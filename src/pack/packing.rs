@@ -21,6 +21,8 @@
 //! file = "../../meshes/stones/stone_001.msh"
 //! scale = 1.0
 //! round_m = 0.012          # optional: the stone is its hull swept by this sphere
+//! spheres_m = 0.024        # optional: contact spheres of this diameter at every
+//!                          # surface node of the mesh (ballast-pack's stones.spheres)
 //!
 //! [[stone]]
 //! mesh = 0                 # index into [[mesh]]
@@ -60,6 +62,11 @@ pub struct PackedMesh {
     /// bare hull), as `ballast-pack`'s `stones.round` packed it.
     #[serde(default)]
     pub round_m: f64,
+    /// The body's contact shape is spheres of this diameter at every surface node of
+    /// the mesh (m; 0, the default: none), as `ballast-pack`'s `stones.spheres` packed
+    /// it.
+    #[serde(default)]
+    pub spheres_m: f64,
 }
 
 /// A rigid placement of a mesh (or a cuboid).
@@ -172,6 +179,9 @@ impl Packing {
             if m.round_m != 0.0 {
                 let _ = writeln!(out, "round_m = {:?}", m.round_m);
             }
+            if m.spheres_m != 0.0 {
+                let _ = writeln!(out, "spheres_m = {:?}", m.spheres_m);
+            }
         }
         for (table, list) in [("stone", &self.stones), ("sleeper", &self.sleepers)] {
             for p in list {
@@ -249,8 +259,10 @@ impl Packing {
             if !(m.scale.is_finite() && m.scale > 0.0) {
                 return Err(format!("key mesh[{i}].scale: must be a positive number"));
             }
-            if !(m.round_m.is_finite() && m.round_m >= 0.0) {
-                return Err(format!("key mesh[{i}].round_m: must be a number ≥ 0"));
+            for (key, value) in [("round_m", m.round_m), ("spheres_m", m.spheres_m)] {
+                if !(value.is_finite() && value >= 0.0) {
+                    return Err(format!("key mesh[{i}].{key}: must be a number ≥ 0"));
+                }
             }
         }
         for (table, list) in [("stone", &self.stones), ("sleeper", &self.sleepers)] {
@@ -306,11 +318,13 @@ mod tests {
                     file: "stones/stone_001.msh".into(),
                     scale: 1.0,
                     round_m: 0.012,
+                    spheres_m: 0.0,
                 },
                 PackedMesh {
                     file: "stones/stone_002.msh".into(),
                     scale: 1.5,
                     round_m: 0.0,
+                    spheres_m: 0.024,
                 },
             ],
             stones: vec![Placement::from_pose(
@@ -344,6 +358,10 @@ mod tests {
             (
                 text.replace("round_m = 0.012", "round_m = -0.01"),
                 "mesh[0].round_m",
+            ),
+            (
+                text.replace("spheres_m = 0.024", "spheres_m = nan"),
+                "mesh[1].spheres_m",
             ),
             (
                 text.replace(

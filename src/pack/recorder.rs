@@ -11,7 +11,6 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 use super::deposit::{Deposition, Observer, Role, StepRecord};
 use super::resume::{PackCheckpoint, PACK_CHECKPOINT_FORMAT};
-use crate::contact::Collider;
 use crate::nscd::body::Body;
 use crate::nscd::run::{grains_grid, Drawn};
 use crate::output::{CsvSeries, Grid, PvdWriter};
@@ -202,7 +201,7 @@ pub fn bed_grid(bodies: &[Body], roles: &[Role]) -> Result<Grid> {
     let kinds: Vec<i32> = bodies
         .iter()
         .zip(roles)
-        .filter(|(b, _)| matches!(b.shape.collider, Collider::Convex(_)))
+        .filter(|(b, _)| b.shape.collider.is_bounded())
         .flat_map(|(b, r)| {
             std::iter::repeat_n(
                 i32::from(matches!(r, Role::Sleeper(_))),

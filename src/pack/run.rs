@@ -96,11 +96,16 @@ fn sleeper_source(scene: &BedScene, scene_path: &Path) -> Result<Option<SleeperS
     let centre = Vector3::new(0.5 * (lo.x + hi.x), 0.5 * (lo.y + hi.y), lo.z);
     let own_from_mesh = Isometry3::from_parts(Translation3::from(-(turn * centre)), turn);
     let own: Vec<Point3<f64>> = points.iter().map(|p| own_from_mesh * p).collect();
-    let principal = BodyShape::convex_hull(&own, &format!("key sleepers.mesh: {}", file.display()))
-        .map_err(|e| match e {
-            Error::Message(m) => Error::invalid(scene_path, m),
-            e => e,
-        })?;
+    let mut principal =
+        BodyShape::convex_hull(&own, &format!("key sleepers.mesh: {}", file.display())).map_err(
+            |e| match e {
+                Error::Message(m) => Error::invalid(scene_path, m),
+                e => e,
+            },
+        )?;
+    if let Some(d) = scene.stones.spheres.filter(|d| d.si() > 0.0) {
+        principal.with_vertex_spheres(&mesh, &own_from_mesh, 1.0, d.si());
+    }
     let extent = turn * (hi - lo);
     Ok(Some(SleeperSource {
         model: SleeperModel {
@@ -212,6 +217,7 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
     };
     let directory = NscdScene::resolve(&ctx.scene_path, &scene.stones.directory);
     let round = scene.stones.round.map_or(0.0, |r| r.si());
+    let spheres = scene.stones.spheres.map_or(0.0, |d| d.si());
     if round > 0.0 {
         println!(
             "ballast-pack: stones.round is experimental; the sleepers settle free for the \
@@ -224,7 +230,7 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
             read_stone_shapes(&directory, scene.stones.scale)
         })?
         .into_iter()
-        .map(|s| s.rounded(round))
+        .map(|s| s.rounded(round).with_vertex_spheres(spheres))
         .collect();
     if family.is_empty() {
         return Err(Error::invalid(
@@ -743,6 +749,7 @@ fn packing_of(
             file: relative(&stone.file)?,
             scale: stone.scale,
             round_m: stone.round(),
+            spheres_m: stone.spheres(),
         });
     }
     let sleeper_mesh = match sleeper.and_then(|s| s.mesh.as_ref()) {
@@ -751,6 +758,7 @@ fn packing_of(
                 file: relative(file)?,
                 scale: 1.0,
                 round_m: 0.0,
+                spheres_m: sleeper.map_or(0.0, |s| s.model.shape.collider.sphere_diameter()),
             });
             Some(meshes.len() - 1)
         }

@@ -9,6 +9,9 @@
 //! material = "granite"
 //! scale = 1.0                           # factor on the family's size (grading shift)
 //! count = 500                           # optional cap on the number of stones
+//! spheres = "24 mm"                     # optional: contact spheres at the meshes'
+//!                                       # surface nodes (the QDEM track's; needs
+//!                                       # sleepers.mesh)
 //!
 //! [bed]
 //! length = "1.8 m"                      # x, along the track
@@ -124,6 +127,13 @@ pub struct StonesSpec {
     /// sleepers, not yet with held ones (docs/pack.md, "Rounded stones").
     #[serde(default)]
     pub round: Option<Length>,
+    /// The stones and sleepers are packed with spheres of this diameter at every
+    /// surface node of their meshes as their contact shape: the QDEM track scene's
+    /// contact spheres (seed 004 §2.3, 24 mm), so that its bed starts at rest with
+    /// them (docs/pack.md, "Vertex spheres"). Default: none (bare hulls). Needs a
+    /// sleeper mesh, not a cuboid.
+    #[serde(default)]
+    pub spheres: Option<Length>,
     /// Cap on the number of stones.
     #[serde(default)]
     pub count: Option<usize>,
@@ -407,6 +417,19 @@ impl Validate for BedScene {
         );
         if let Some(r) = self.stones.round {
             v.non_negative("stones.round", r);
+        }
+        if let Some(d) = self.stones.spheres {
+            v.non_negative("stones.spheres", d);
+            v.check(
+                "stones.spheres",
+                self.stones.round.is_none_or(|r| r.si() == 0.0) || d.si() == 0.0,
+                "cannot go with stones.round (one contact shape or the other)",
+            );
+            v.check(
+                "stones.spheres",
+                d.si() == 0.0 || self.sleepers.as_ref().is_none_or(|s| s.mesh.is_some()),
+                "needs the sleepers as a mesh (sleepers.mesh): a cuboid has no surface nodes",
+            );
         }
         if let Some(n) = self.stones.count {
             v.check("stones.count", n > 0, "must be at least 1");

@@ -177,7 +177,7 @@ pub fn build(
     let mut deformable: Vec<std::ops::Range<u32>> = Vec::new();
     deformable.push(0..sleeper_world.len() as u32);
     {
-        let surface = surface_nodes(&sleeper_mesh);
+        let surface = sleeper_mesh.surface_nodes();
         let insets = sphere_insets(
             &sleeper_world,
             &sleeper_mesh.boundary,
@@ -207,7 +207,7 @@ pub fn build(
     let ballast_density = scene.ballast.material.density.si();
     for (i, (m, world)) in stone_meshes.iter().zip(&stone_nodes).enumerate() {
         let body = bodies.len() as u32;
-        let surface = surface_nodes(m);
+        let surface = m.surface_nodes();
         let (surface, insets): (Vec<u32>, Vec<([f64; 3], f64)>) = surface
             .iter()
             .zip(sphere_insets(world, &m.boundary, &surface, radius, inset))
@@ -248,7 +248,7 @@ pub fn build(
                 })?;
             let index = rigid.len() as u32;
             // The surface for VTK: every boundary vertex, in the principal frame.
-            let all = surface_nodes(m);
+            let all = m.surface_nodes();
             let local: HashMap<u32, u32> = all
                 .iter()
                 .enumerate()
@@ -615,13 +615,6 @@ fn sphere_insets(
 }
 
 /// Nodes on the mesh's boundary faces, ascending.
-fn surface_nodes(m: &TetMesh) -> Vec<u32> {
-    let mut n: Vec<u32> = m.boundary.iter().flatten().copied().collect();
-    n.sort_unstable();
-    n.dedup();
-    n
-}
-
 fn centroid(nodes: &[Point3<f64>]) -> [f64; 3] {
     let mut c = [0.0; 3];
     for p in nodes {
@@ -667,7 +660,7 @@ mod tests {
         let boundary = boundary_faces(&tets).unwrap();
         let mesh = TetMesh::from_parts("box", nodes.clone(), tets, Vec::new()).unwrap();
         assert_eq!(mesh.boundary.len(), boundary.len());
-        let surface = surface_nodes(&mesh);
+        let surface = mesh.surface_nodes();
         let insets = sphere_insets(&nodes, &mesh.boundary, &surface, 0.012, true);
         for (&n, (o, radius)) in surface.iter().zip(&insets) {
             let r = *radius;
