@@ -67,11 +67,16 @@ $(BINARIES) &: $(RUST_SOURCES) | $(SYSTEM_DEPS_STAMP)
 	$(CARGO) build --release --locked --bins
 	@touch $(BINARIES)
 
-## Meshes: one rule for every parameterised gmsh source.
+## Meshes: one rule for every parameterised gmsh source, and GMSH_H for the rules of
+## variants meshed at edge length h = the stem (meshes/<name>_h<h>.msh, mk/*.mk).
 meshes: $(OBJECT_MESHES) stones
 meshes/%.msh: geo/%.geo | $(VENV_STAMP)
 	@mkdir -p $(@D)
 	$(GMSH) $< $(GMSH_FLAGS) -o $@
+define GMSH_H
+@mkdir -p $(@D)
+$(GMSH) $< $(GMSH_FLAGS) -setnumber h $* -o $@
+endef
 
 ## The default scene: every mesh checked, exported to VTK and tabulated.
 gallery: results/mesh_gallery/summary.json
@@ -108,7 +113,7 @@ test:
 test-build: $(SYSTEM_DEPS_STAMP)
 	$(CARGO) fmt --check
 	$(LINTED_CARGO) test --release --locked --no-run
-test-inputs: $(OBJECT_MESHES) $(QDEM_QUICK_MESHES) $(STONE_MESHES)
+test-inputs: $(OBJECT_MESHES) $(QDEM_QUICK_MESHES) $(TRACK_SLEEPER) $(STONE_MESHES)
 
 ## Lints alone (what the test build checks), with clippy's own command.
 lint:

@@ -11,8 +11,7 @@ QDEM_QUICK := $(QDEM_SCENES:%=results/%-quick/summary.json)
 .PHONY: qdem-quick paper bench-qdem
 
 meshes/cantilever_h%.msh: geo/cantilever.geo | $(VENV_STAMP)
-	@mkdir -p $(@D)
-	$(GMSH) $< $(GMSH_FLAGS) -setnumber h $* -o $@
+	$(GMSH_H)
 
 ## The quick presets (seconds each): part of the default `make`.
 qdem-quick: $(QDEM_QUICK)

@@ -101,6 +101,31 @@ pub fn build(
             "the sleeper is a cuboid; the track scene needs a sleeper mesh (sleepers.mesh in the bed scene)",
         ));
     };
+    let packed = packing
+        .meshes
+        .iter()
+        .map(|m| m.spheres_m)
+        .fold(0.0, f64::max);
+    let ours = scene.track.sphere_diameter.si();
+    if packed > 0.0 && (packed != ours || scene.track.sphere_centres == SphereCentres::Inset) {
+        println!(
+            "ballast-qdem: note: the bed was packed with {:.1} mm spheres at the surface \
+             nodes; this run puts {:.1} mm spheres {}, so it does not start at rest",
+            packed * 1e3,
+            ours * 1e3,
+            match scene.track.sphere_centres {
+                SphereCentres::Inset => "inset",
+                _ => "at the nodes",
+            }
+        );
+    }
+    if packing.sides == "walls" && scene.track.periodic != Periodic::None {
+        println!(
+            "ballast-qdem: note: the bed was packed between walls and is read periodic \
+             (track.periodic): the stones at its ends lose their walls and do not start \
+             at rest"
+        );
+    }
     let mut meshes: HashMap<usize, TetMesh> = HashMap::new();
     let mut mesh = |k: usize| -> Result<TetMesh> {
         if let Some(m) = meshes.get(&k) {
