@@ -713,13 +713,17 @@ fn rounded_stones_settle_round_a_heavy_sleeper_left_free() {
     assert_carried(&last, scale);
 }
 
-#[test]
-fn rounded_stones_pack_apart_by_their_rounding_and_ballast_nscd_reads_it() {
-    // The box without sleepers, its stones rounded by 2 mm (`stones.round`,
-    // experimental; docs/pack.md, "Rounded stones").
+/// Packs the box without sleepers with the contact shape `set` (a `--set` value)
+/// that the packing records in lines starting with `key` = `value`; then checks that
+/// `ballast-nscd` builds the same stones from the packing. They touch where they were
+/// packed: the overlaps stay below 0.1 % of d50, and there are as many touching
+/// contacts as ballast-pack's coordination number says (each touching pair has at
+/// least one). Read as bare hulls (the `key` lines removed), the same stones stand
+/// apart by the shape's reach, beyond the 2 mm alert distance: far fewer touch.
+fn packs_apart_and_ballast_nscd_reads_it(set: &str, key: &str, value: &str) {
     let (work, path) = small_box_scene("0.1 m", "", "");
     let out = work.path().join("out");
-    pack_into(&path, &out, &["--set", "stones.round=\"2 mm\""]);
+    pack_into(&path, &out, &["--set", set]);
     let f = figures(&out);
     assert_eq!(f["settled"], true, "{}", f["phases"]);
     assert!(figure(&f, "max_interpenetration_over_d50") < 1e-3);
@@ -728,13 +732,11 @@ fn rounded_stones_pack_apart_by_their_rounding_and_ballast_nscd_reads_it() {
     let text = std::fs::read_to_string(&packing).unwrap();
     let meshes = text.matches("[[mesh]]").count();
     assert!(meshes > 0);
-    assert_eq!(text.matches("round_m = 0.002").count(), meshes, "{text}");
-    // ballast-nscd builds the rounded stones from the packing: they touch where they
-    // were packed (the overlaps of the rounded shapes stay below 0.1 % of d50, and
-    // there are as many touching contacts as ballast-pack's coordination number says:
-    // each touching pair has at least one). Read as bare hulls (`round_m` removed), the
-    // same stones stand up to 4 mm apart, beyond the 2 mm alert distance: far fewer
-    // touch, and the bed starts to fall.
+    assert_eq!(
+        text.matches(&format!("{key} = {value}")).count(),
+        meshes,
+        "{text}"
+    );
     let touching = |packing: &Path| {
         let (_work, _out, n) = nscd_on_packing(packing, 1);
         (
@@ -742,32 +744,45 @@ fn rounded_stones_pack_apart_by_their_rounding_and_ballast_nscd_reads_it() {
             figure(&n, "final_max_interpenetration_over_d50"),
         )
     };
-    let (rounded, overlap) = touching(&packing);
+    let (shaped, overlap) = touching(&packing);
     assert!(overlap < 1e-3, "overlap {overlap} d50");
     let pairs = 0.5 * figure(&f, "coordination_number") * figure(&f, "grains");
     assert!(
-        rounded >= pairs,
-        "{rounded} touching contacts, {pairs} stone pairs"
+        shaped >= pairs,
+        "{shaped} touching contacts, {pairs} stone pairs"
     );
     // Beside the packing, so that its relative mesh paths hold.
     let bare = out.join("bare.toml");
     let stripped: String = text
         .lines()
-        .filter(|l| !l.starts_with("round_m"))
+        .filter(|l| !l.starts_with(key))
         .map(|l| format!("{l}\n"))
         .collect();
     std::fs::write(&bare, stripped).unwrap();
     let (hulls, _) = touching(&bare);
-    assert!(
-        hulls < 0.5 * rounded,
-        "bare hulls {hulls}, rounded {rounded}"
-    );
+    assert!(hulls < 0.5 * shaped, "bare hulls {hulls}, {set}: {shaped}");
+}
+
+#[test]
+fn rounded_stones_pack_apart_by_their_rounding_and_ballast_nscd_reads_it() {
+    // Stones rounded by 2 mm (`stones.round`, experimental; docs/pack.md, "Rounded
+    // stones"): bare hulls up to 4 mm apart.
+    packs_apart_and_ballast_nscd_reads_it("stones.round=\"2 mm\"", "round_m", "0.002");
+}
+
+#[test]
+fn stones_of_vertex_spheres_pack_apart_and_ballast_nscd_reads_them() {
+    // 10 mm spheres at every surface node (`stones.spheres`; docs/pack.md, "Vertex
+    // spheres"): bare hulls up to 10 mm apart.
+    packs_apart_and_ballast_nscd_reads_it("stones.spheres=\"10 mm\"", "spheres_m", "0.01");
 }
 
 #[test]
 fn beds_that_cannot_hold_the_stones_are_one_line_errors() {
     let work = tempfile::tempdir().unwrap();
-    let cases: [(&[&str], &str); 7] = [
+    let cases: [(&[&str], &str); 8] = [
+        // Vertex spheres on a cuboid sleeper, which has no surface nodes.
+        (&["--set", "stones.spheres=\"24 mm\""], "key stones.spheres"),
         // Periodic, the quick bed's 0.7 m is not its two 0.3 m sleeper bays.
         (&["--set", "bed.sides=\"periodic\""], "key bed.length"),
         (

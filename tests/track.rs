@@ -174,7 +174,7 @@ fn the_quick_track_runs_and_its_sensors_see_the_axle() {
 /// run's own contact spheres, so it starts at rest and settles under the axle by
 /// sliding at its contacts: with µ = 1.73 on every contact it settles less than with
 /// the scene's 0.577. Measured on this bed: −2.93 against −0.37 mm (8 ×); on the bed
-/// of seed 2, −0.89 against −0.19 mm (4.7 ×). Asking for 2 × leaves room for another
+/// of seed 2, −0.86 against −0.17 mm (5 ×). Asking for 2 × leaves room for another
 /// platform's bits and fails if friction stopped mattering.
 #[test]
 fn the_bed_settles_less_under_higher_friction() {
