@@ -158,7 +158,7 @@ impl ConvexShape {
 }
 
 /// Equal spheres centred at given points of a body: its contact shape where seed 004's
-/// QDEM puts a sphere at every surface vertex (§2.3), so that a bed packed with it
+/// QDEM puts a sphere at every surface vertex (§4), so that a bed packed with it
 /// meets the QDEM model's spheres at rest. The hull of the vertices is kept for what
 /// is not contact (volumes in control boxes, pictures).
 #[derive(Debug, Clone)]

@@ -129,7 +129,7 @@ pub struct StonesSpec {
     pub round: Option<Length>,
     /// The stones and sleepers are packed with spheres of this diameter at every
     /// surface node of their meshes as their contact shape: the QDEM track scene's
-    /// contact spheres (seed 004 §2.3, 24 mm), so that its bed starts at rest with
+    /// contact spheres (seed 004 §4, 24 mm), so that its bed starts at rest with
     /// them (docs/pack.md, "Vertex spheres"). Default: none (bare hulls). Needs a
     /// sleeper mesh, not a cuboid.
     #[serde(default)]
