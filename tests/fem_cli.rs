@@ -74,16 +74,6 @@ fn floats(v: &Value) -> Vec<f64> {
         .collect()
 }
 
-fn read_csv(path: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
-    let text = std::fs::read_to_string(path).unwrap();
-    let mut lines = text.lines();
-    let header = lines.next().unwrap().split(',').map(String::from).collect();
-    let rows = lines
-        .map(|l| l.split(',').map(|x| x.parse().unwrap()).collect())
-        .collect();
-    (header, rows)
-}
-
 fn concrete() -> LinearElastic {
     LinearElastic {
         young_modulus: 45e9,
@@ -182,7 +172,7 @@ fn static_quick_matches_the_library_and_beam_theory_and_writes_readable_outputs(
     }
 
     // probes.csv: QDEM's column names, one row, the summary's value.
-    let (header, rows) = read_csv(&dir.path().join("probes.csv"));
+    let (header, rows) = common::read_csv(&dir.path().join("probes.csv"));
     assert_eq!(
         header,
         ["tip_centre_ux_m", "tip_centre_uy_m", "tip_centre_uz_m"]
@@ -254,7 +244,7 @@ fn modes_quick_are_positive_increasing_and_match_the_library() {
 
     // frequencies.csv and the mode shapes, read by VTK: one frame per mode, normalised
     // to max |u| = 1.
-    let (header, rows) = read_csv(&dir.path().join("frequencies.csv"));
+    let (header, rows) = common::read_csv(&dir.path().join("frequencies.csv"));
     assert_eq!(header, ["mode", "frequency_hz"]);
     assert_eq!(rows.len(), 4);
     for (i, row) in rows.iter().enumerate() {
@@ -374,7 +364,7 @@ fn a_partially_fixed_group_holds_only_its_directions() {
     // The tip support carries the −200 N, the root only the sideways load.
     let reaction = floats(&figures["reaction_total_N"]);
     assert!((reaction[1] + 500.0).abs() < 1e-6 && (reaction[2] - 200.0).abs() < 1e-6);
-    let (header, _) = read_csv(&out.path().join("probes.csv"));
+    let (header, _) = common::read_csv(&out.path().join("probes.csv"));
     assert_eq!(header.len(), 3);
 }
 

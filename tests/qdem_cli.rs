@@ -50,17 +50,6 @@ fn f(v: &Value, key: &str) -> f64 {
         .unwrap_or_else(|| panic!("{key} missing in {v}"))
 }
 
-/// Rows of a CSV written by ballast (header, then numbers).
-fn read_csv(path: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
-    let text = std::fs::read_to_string(path).unwrap();
-    let mut lines = text.lines();
-    let header = lines.next().unwrap().split(',').map(String::from).collect();
-    let rows = lines
-        .map(|l| l.split(',').map(|x| x.parse().unwrap()).collect())
-        .collect();
-    (header, rows)
-}
-
 #[test]
 fn cantilever_static_quick_matches_the_paper_and_writes_readable_outputs() {
     let (dir, figures) = run_quick("scenes/cantilever_static.toml");
@@ -80,7 +69,7 @@ fn cantilever_static_quick_matches_the_paper_and_writes_readable_outputs() {
     assert!((dt / stable - 0.8).abs() < 1e-12, "{dt} {stable}");
 
     // Energy balance: kinetic + strain + dissipated = work, to 1e-4 of the work.
-    let (header, rows) = read_csv(&dir.path().join("energies.csv"));
+    let (header, rows) = common::read_csv(&dir.path().join("energies.csv"));
     let col = |name: &str| header.iter().position(|h| h == name).unwrap();
     let last = rows.last().unwrap();
     assert!(last[col("external_work_J")] > 0.0);
@@ -92,7 +81,7 @@ fn cantilever_static_quick_matches_the_paper_and_writes_readable_outputs() {
     assert!((ratio - 0.5).abs() < 3e-3, "{ratio}");
 
     // The probe series ends on the summary's value.
-    let (header, rows) = read_csv(&dir.path().join("probes.csv"));
+    let (header, rows) = common::read_csv(&dir.path().join("probes.csv"));
     assert_eq!(
         header,
         [

@@ -42,6 +42,11 @@ pub fn aabb_of(points: &[Point3<f64>], pose: &Isometry3<f64>) -> Aabb {
 }
 
 impl Aabb {
+    /// Whether `p` lies in the box (faces included).
+    pub fn contains(&self, p: &Point3<f64>) -> bool {
+        (0..3).all(|d| p[d] >= self.min[d] && p[d] <= self.max[d])
+    }
+
     /// The box grown by `margin` (m) on every side.
     pub fn grown(self, margin: f64) -> Aabb {
         let m = Vector3::repeat(margin);

@@ -736,23 +736,25 @@ fn centre_pairs(
     alert: f64,
     out: &mut Vec<LocalContact>,
 ) {
-    let near = |points: &[(usize, Point3<f64>)], bx: &super::broad::Aabb| {
-        points
-            .iter()
-            .filter(|(_, p)| (0..3).all(|d| p[d] >= bx.min[d] - alert && p[d] <= bx.max[d] + alert))
-            .copied()
-            .collect::<Vec<_>>()
-    };
-    let b_in_a: Vec<(usize, Point3<f64>)> =
-        b.iter().enumerate().map(|(j, p)| (j, pos12 * p)).collect();
-    let a_all: Vec<(usize, Point3<f64>)> = a.iter().copied().enumerate().collect();
-    let b_near = near(&b_in_a, &aabb_of(a, &Isometry3::identity()));
+    let identity = Isometry3::identity();
+    let a_box = aabb_of(a, &identity).grown(alert);
+    let b_near: Vec<(usize, Point3<f64>)> = b
+        .iter()
+        .enumerate()
+        .map(|(j, p)| (j, pos12 * p))
+        .filter(|(_, p)| a_box.contains(p))
+        .collect();
     if b_near.is_empty() {
         return;
     }
     let b_points: Vec<Point3<f64>> = b_near.iter().map(|(_, p)| *p).collect();
-    let a_near = near(&a_all, &aabb_of(&b_points, &Isometry3::identity()));
-    for &(i, ca) in &a_near {
+    let b_box = aabb_of(&b_points, &identity).grown(alert);
+    let a_near = a
+        .iter()
+        .copied()
+        .enumerate()
+        .filter(|(_, p)| b_box.contains(p));
+    for (i, ca) in a_near {
         for &(j, cb) in &b_near {
             let between = cb - ca;
             let d = between.norm();
@@ -974,15 +976,21 @@ mod tests {
         Collider::Convex(ConvexShape::from_points(&points).unwrap())
     }
 
-    #[test]
-    fn a_cube_on_a_plane_has_four_corner_contacts() {
+    /// The contacts of `block` with its centre at `height` over the floor z = 0 (alert
+    /// distance 1 mm; the floor is body 0).
+    fn on_floor(block: &Collider, height: f64) -> Vec<ContactPoint> {
         let floor = Collider::HalfSpace(Vector3::z_axis());
-        let block = cube(0.5);
         let poses = [
             Isometry3::identity(),
-            Isometry3::translation(0.0, 0.0, 0.5 + 1e-4),
+            Isometry3::translation(0.0, 0.0, height),
         ];
-        let contacts = detect(&[&floor, &block], &poses, &[false, true], 1e-3);
+        detect(&[&floor, block], &poses, &[false, true], 1e-3)
+    }
+
+    #[test]
+    fn a_cube_on_a_plane_has_four_corner_contacts() {
+        let block = cube(0.5);
+        let contacts = on_floor(&block, 0.5 + 1e-4);
         assert_eq!(contacts.len(), 4);
         for c in &contacts {
             assert_eq!((c.key.body_a, c.key.body_b), (0, 1));
@@ -991,11 +999,7 @@ mod tests {
             assert!((c.point.x.abs() - 0.5).abs() < 1e-12 && (c.point.y.abs() - 0.5).abs() < 1e-12);
         }
         // Beyond the alert distance: nothing.
-        let far = [
-            Isometry3::identity(),
-            Isometry3::translation(0.0, 0.0, 0.502),
-        ];
-        assert!(detect(&[&floor, &block], &far, &[false, true], 1e-3).is_empty());
+        assert!(on_floor(&block, 0.502).is_empty());
     }
 
     /// A unit cube standing on its edge along x (rotated 45° about x), and above it one
@@ -1364,13 +1368,7 @@ mod tests {
     #[test]
     fn a_rounded_cube_rests_on_a_plane_by_its_rounding() {
         let r = 5e-3;
-        let floor = Collider::HalfSpace(Vector3::z_axis());
-        let block = rounded_cube(0.5, r);
-        let poses = [
-            Isometry3::identity(),
-            Isometry3::translation(0.0, 0.0, 0.5 + r + 1e-4),
-        ];
-        let contacts = detect(&[&floor, &block], &poses, &[false, true], 1e-3);
+        let contacts = on_floor(&rounded_cube(0.5, r), 0.5 + r + 1e-4);
         assert_eq!(contacts.len(), 4);
         for c in &contacts {
             assert!((c.gap - 1e-4).abs() < 1e-12, "{}", c.gap);
@@ -1441,15 +1439,10 @@ mod tests {
     #[test]
     fn a_sphere_cluster_rests_on_a_plane_and_on_a_hull_by_its_spheres() {
         let r = 0.012;
-        let floor = Collider::HalfSpace(Vector3::z_axis());
         let block = cube_of_spheres(r);
         // On the floor 0.1 mm clear: the four lower corners and the bottom face's
         // centre, each gap 0.1 mm, midway between plane and sphere.
-        let poses = [
-            Isometry3::identity(),
-            Isometry3::translation(0.0, 0.0, 0.5 + r + 1e-4),
-        ];
-        let contacts = detect(&[&floor, &block], &poses, &[false, true], 1e-3);
+        let contacts = on_floor(&block, 0.5 + r + 1e-4);
         assert_eq!(contacts.len(), 5);
         for c in &contacts {
             assert_eq!((c.key.body_a, c.key.body_b), (0, 1));
