@@ -76,7 +76,9 @@ pub struct PairState {
     pub xi: [f64; 3],
     /// Rest overlap (m): the overlap of a pair already overlapping when the list was
     /// first built, which then carries no force (an imported packing starts at rest
-    /// rather than exploding); 0 for pairs that meet later.
+    /// rather than exploding); 0 for pairs that meet later. A resting pair keeps it
+    /// for the whole run, also after it has left the list and come back
+    /// ([`ContactState::resting`]).
     pub rest: f64,
     /// Share of the law's force this pair carries: 1, or 1/n for one of the n resting
     /// pairs of a pair of bodies when the set's `shared_rest` is on.
@@ -91,10 +93,27 @@ pub struct PairState {
 pub struct ContactState {
     /// Candidate pairs, sorted by (first, second).
     pub pairs: Vec<PairState>,
+    /// The pairs that overlapped when the list was first built, with their rest
+    /// overlap and share, sorted by (first, second): kept for the run, so a resting
+    /// pair that drifts out of the list and back rests where it did, whatever the skin.
+    pub resting: Vec<RestingPair>,
     /// Sphere positions at the last rebuild.
     pub anchors: Vec<[f64; 3]>,
     /// Rebuilds so far.
     pub rebuilds: u64,
+}
+
+/// A pair that overlapped when the list was first built ([`PairState::rest`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct RestingPair {
+    /// First sphere.
+    pub first: u32,
+    /// Second sphere, or `PLANE | plane`.
+    pub second: u32,
+    /// Rest overlap (m).
+    pub rest: f64,
+    /// Share of the law's force ([`PairState::share`]).
+    pub share: f64,
 }
 
 /// Totals of one contact evaluation.
@@ -130,6 +149,14 @@ pub struct Contacts {
     /// gather[offsets[s]..offsets[s + 1]]: (pair index, +1 second / −1 first) of sphere s.
     offsets: Vec<u32>,
     gather: Vec<(u32, f64)>,
+    /// The spheres with at least one candidate pair, ascending: the only ones whose
+    /// force can be non-zero until the next rebuild.
+    touched: Vec<u32>,
+    /// Their forces, summed in parallel before they are scattered.
+    touched_forces: Vec<[f64; 3]>,
+    /// Set when the list changes: the next evaluation zeroes every sphere's force
+    /// first, so that spheres no longer touched do not keep an old one.
+    clear_forces: bool,
 }
 
 /// Below this many pairs the force loop runs on the calling thread.
@@ -146,7 +173,29 @@ impl Contacts {
             skin,
             offsets: Vec::new(),
             gather: Vec::new(),
+            touched: Vec::new(),
+            touched_forces: Vec::new(),
+            clear_forces: true,
         }
+    }
+
+    /// Whether the candidate list must be rebuilt for `positions`: the first call, or
+    /// some sphere has moved more than half the skin since the last build.
+    pub fn stale(&self, state: &ContactState, positions: &[[f64; 3]]) -> bool {
+        let n = positions.len();
+        state.anchors.len() != n
+            || self.offsets.len() != n + 1
+            || positions.iter().zip(&state.anchors).any(|(p, a)| {
+                let d = sub(*p, *a);
+                dot(d, d) > 0.25 * self.skin * self.skin
+            })
+    }
+
+    /// The spheres that have a candidate pair in the current list, ascending. Only
+    /// they can carry a force, and only their positions and velocities are read by
+    /// [`Self::evaluate`] unless the list is rebuilt.
+    pub fn touched(&self) -> &[u32] {
+        &self.touched
     }
 
     /// Rebuilds the candidate list if needed (first call, or a sphere moved more than
@@ -154,61 +203,41 @@ impl Contacts {
     /// that stay.
     pub fn refresh(&mut self, state: &mut ContactState, positions: &[[f64; 3]]) -> bool {
         let n = positions.len();
-        let stale = state.anchors.len() != n
-            || self.offsets.len() != n + 1
-            || positions.iter().zip(&state.anchors).any(|(p, a)| {
-                let d = sub(*p, *a);
-                dot(d, d) > 0.25 * self.skin * self.skin
-            });
-        if !stale {
+        if !self.stale(state, positions) {
             return false;
         }
-        let cutoff = 2.0 * self.set.max_radius() + self.skin;
-        let period = self.set.period.as_ref();
-        let mut fresh: Vec<PairState> = close_pairs(positions, &self.set.owner, cutoff, period)
+        let mut fresh: Vec<PairState> = self
+            .within(positions, self.skin)
             .into_iter()
-            .filter(|&(i, j)| {
-                let d = Period::difference(period, positions[i as usize], positions[j as usize]);
-                norm(d) < self.set.radius[i as usize] + self.set.radius[j as usize] + self.skin
-            })
-            .map(|(i, j)| PairState {
-                first: i,
-                second: j,
+            .map(|(first, second)| PairState {
+                first,
+                second,
                 xi: [0.0; 3],
                 rest: 0.0,
                 share: 1.0,
                 force: [0.0; 3],
             })
             .collect();
-        let mut planes = Vec::new();
-        for (i, p) in positions.iter().enumerate() {
-            for (k, plane) in self.set.planes.iter().enumerate() {
-                let gap = dot(sub(*p, plane.point), plane.normal) - self.set.radius[i];
-                if gap < self.skin {
-                    planes.push(PairState {
-                        first: i as u32,
-                        second: PLANE | k as u32,
-                        xi: [0.0; 3],
-                        rest: 0.0,
-                        share: 1.0,
-                        force: [0.0; 3],
-                    });
-                }
-            }
-        }
-        fresh.extend(planes);
         fresh.sort_unstable_by_key(|p| (p.first, p.second));
-        // Carry the springs of pairs in both lists (both sorted: a merge join).
+        // Carry the springs of pairs in both lists, and the rest of resting pairs
+        // (all sorted: merge joins).
         let old = std::mem::take(&mut state.pairs);
-        let mut k = 0;
+        let (mut k, mut r) = (0, 0);
+        let resting = &state.resting;
         for p in &mut fresh {
-            while k < old.len() && (old[k].first, old[k].second) < (p.first, p.second) {
+            let key = (p.first, p.second);
+            while k < old.len() && (old[k].first, old[k].second) < key {
                 k += 1;
             }
-            if k < old.len() && (old[k].first, old[k].second) == (p.first, p.second) {
+            if k < old.len() && (old[k].first, old[k].second) == key {
                 p.xi = old[k].xi;
-                p.rest = old[k].rest;
-                p.share = old[k].share;
+            }
+            while r < resting.len() && (resting[r].first, resting[r].second) < key {
+                r += 1;
+            }
+            if r < resting.len() && (resting[r].first, resting[r].second) == key {
+                p.rest = resting[r].rest;
+                p.share = resting[r].share;
             }
         }
         if state.rebuilds == 0 {
@@ -218,12 +247,48 @@ impl Contacts {
             if self.set.shared_rest {
                 self.share_rest(&mut fresh);
             }
+            state.resting = fresh
+                .iter()
+                .filter(|p| p.rest > 0.0)
+                .map(|p| RestingPair {
+                    first: p.first,
+                    second: p.second,
+                    rest: p.rest,
+                    share: p.share,
+                })
+                .collect();
         }
         state.pairs = fresh;
         state.anchors = positions.to_vec();
         state.rebuilds += 1;
         self.index_gather(&state.pairs, n);
         true
+    }
+
+    /// The sphere pairs of different bodies closer than r_i + r_j + `gap`, and the
+    /// sphere–plane pairs closer than r_i + `gap`, as (first, second) with
+    /// `second = PLANE | plane` for the latter; unsorted. The Verlet list is this with
+    /// the skin; the stable step counts the pairs within a fixed gap
+    /// ([`super::system::STABLE_STEP_GAP`]), whatever the skin.
+    pub fn within(&self, positions: &[[f64; 3]], gap: f64) -> Vec<(u32, u32)> {
+        let cutoff = 2.0 * self.set.max_radius() + gap;
+        let period = self.set.period.as_ref();
+        let radius = &self.set.radius;
+        let mut pairs: Vec<(u32, u32)> = close_pairs(positions, &self.set.owner, cutoff, period)
+            .into_iter()
+            .filter(|&(i, j)| {
+                let d = Period::difference(period, positions[i as usize], positions[j as usize]);
+                norm(d) < radius[i as usize] + radius[j as usize] + gap
+            })
+            .collect();
+        for (i, p) in positions.iter().enumerate() {
+            for (k, plane) in self.set.planes.iter().enumerate() {
+                if dot(sub(*p, plane.point), plane.normal) - radius[i] < gap {
+                    pairs.push((i as u32, PLANE | k as u32));
+                }
+            }
+        }
+        pairs
     }
 
     /// Takes up a saved contact state (resuming a run): indexes its pairs for the
@@ -272,6 +337,11 @@ impl Contacts {
                 *f += 1;
             }
         }
+        self.touched = (0..n as u32)
+            .filter(|&s| counts[s as usize + 1] > counts[s as usize])
+            .collect();
+        self.touched_forces = vec![[0.0; 3]; self.touched.len()];
+        self.clear_forces = true;
         self.offsets = counts;
         self.gather = gather;
     }
@@ -299,8 +369,11 @@ impl Contacts {
     }
 
     /// Contact forces for sphere positions and velocities (the half-step velocities in
-    /// Verlet), written into `forces` (one per sphere, overwritten); `dt` advances the
-    /// tangential springs.
+    /// Verlet), written into `forces` (one per sphere; the caller keeps the buffer
+    /// from call to call: only the [`Self::touched`] spheres' entries are rewritten,
+    /// the others are zeroed when the list changes); `dt` advances the tangential
+    /// springs. Unless the list is rebuilt, only the touched spheres' positions and
+    /// velocities are read.
     pub fn evaluate(
         &mut self,
         state: &mut ContactState,
@@ -412,7 +485,8 @@ impl Contacts {
         totals.rebuilt = rebuilt;
         let pairs = &state.pairs;
         let (offsets, gather) = (&self.offsets, &self.gather);
-        let sum = |(s, f): (usize, &mut [f64; 3])| {
+        let sum = |(f, &s): (&mut [f64; 3], &u32)| {
+            let s = s as usize;
             let mut acc = [0.0; 3];
             for &(k, sign) in &gather[offsets[s] as usize..offsets[s + 1] as usize] {
                 let pf = pairs[k as usize].force;
@@ -422,10 +496,17 @@ impl Contacts {
             }
             *f = acc;
         };
-        if forces.len() >= PARALLEL_MIN_PAIRS {
-            forces.par_iter_mut().enumerate().for_each(sum);
+        let summed = &mut self.touched_forces;
+        if summed.len() >= PARALLEL_MIN_PAIRS {
+            summed.par_iter_mut().zip(&self.touched).for_each(sum);
         } else {
-            forces.iter_mut().enumerate().for_each(sum);
+            summed.iter_mut().zip(&self.touched).for_each(sum);
+        }
+        if std::mem::take(&mut self.clear_forces) {
+            forces.fill([0.0; 3]);
+        }
+        for (&s, f) in self.touched.iter().zip(summed.iter()) {
+            forces[s as usize] = *f;
         }
         totals
     }
@@ -481,6 +562,31 @@ mod tests {
         assert!(!c.evaluate(&mut state, &x, &v, 1e-5, &mut f).rebuilt);
         let moved = [[0.0, 0.0, 0.5], [0.02, 0.0, 0.5], [0.5, 0.0, 0.013]];
         assert!(c.evaluate(&mut state, &moved, &v, 1e-5, &mut f).rebuilt);
+    }
+
+    /// A pair that overlapped when the list was first built rests at that overlap for
+    /// the whole run: pulled out of the list (past the skin) and pushed back to where
+    /// it started, it carries no force; pushed 0.5 mm further, k · 0.5 mm.
+    #[test]
+    fn a_resting_pair_keeps_its_rest_after_leaving_the_list() {
+        let mut c = Contacts::new(set(2, vec![0, 1]), 0.0005);
+        let mut state = ContactState::default();
+        let v = [[0.0; 3]; 2];
+        let mut f = [[0.0; 3]; 2];
+        // 1 mm into each other (centres 23 mm apart, radii 12 mm).
+        let at = |gap: f64| [[0.0, 0.0, 0.5], [0.023 + gap, 0.0, 0.5]];
+        c.evaluate(&mut state, &at(0.0), &v, 1e-5, &mut f);
+        assert_eq!(state.pairs.len(), 1);
+        assert!(f.iter().flatten().all(|&x| x == 0.0), "at rest");
+        // 5 mm apart: past rest + skin, out of the list.
+        assert!(c.evaluate(&mut state, &at(0.006), &v, 1e-5, &mut f).rebuilt);
+        assert!(state.pairs.is_empty());
+        // Back where it started: in the list again, at rest.
+        assert!(c.evaluate(&mut state, &at(0.0), &v, 1e-5, &mut f).rebuilt);
+        assert_eq!(state.pairs.len(), 1);
+        assert!(f.iter().flatten().all(|&x| x == 0.0), "back at rest: {f:?}");
+        c.evaluate(&mut state, &at(-0.0005), &v, 1e-5, &mut f);
+        assert!((f[1][0] - 1e6 * 0.0005).abs() < 1e-6, "{f:?}");
     }
 
     /// Shared rest: a body resting on another through three overlapping sphere pairs,

@@ -8,6 +8,7 @@
 //! - [`contacts`]: the Verlet list with a skin, the per-pair springs carried across
 //!   steps, deterministic parallel forces;
 //! - [`rigid`]: 6-DOF rigid bodies with the same spheres (a stone far from the load);
+//! - [`spheres`]: the per-step sphere buffers, and which spheres a step must update;
 //! - [`system`]: QDEM bodies and rigid bodies stepped together.
 //!
 //! Only surface vertices get spheres: an interior vertex's sphere lies inside the body
@@ -17,9 +18,12 @@ pub mod contacts;
 pub mod law;
 pub mod neighbours;
 pub mod rigid;
+pub mod spheres;
 pub mod system;
 
-pub use contacts::{ContactState, ContactTotals, Contacts, PairState, Plane, SphereSet};
+pub use contacts::{
+    ContactState, ContactTotals, Contacts, PairState, Plane, RestingPair, SphereSet,
+};
 pub use law::{ContactLaw, PairForce, SphereMaterial};
 pub use neighbours::{close_pairs, Period};
 pub use rigid::{RigidShape, RigidState};

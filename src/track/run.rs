@@ -355,7 +355,7 @@ const TRACK_COLUMNS: [&str; 12] = [
 ];
 
 /// The format tag of a track checkpoint.
-const CHECKPOINT_FORMAT: &str = "ballast-qdem track checkpoint 1";
+const CHECKPOINT_FORMAT: &str = "ballast-qdem track checkpoint 2";
 
 /// Everything a killed track run needs to go on bit for bit (written by
 /// [`write_checkpoint`]; the scene, bodies and loads come from the scene again).

@@ -1,0 +1,235 @@
+//! The sphere buffers of a multi-body step, and which spheres a step must update.
+//!
+//! Each step gathers every sphere's position and velocity from its body, evaluates the
+//! contacts and sums the sphere forces back onto the bodies. Between two rebuilds of
+//! the Verlet list, [`Contacts::evaluate`] reads only the spheres that have a candidate
+//! pair ([`Contacts::touched`]); on the paper bed of seed 004 §4 (1 999 rigid stones,
+//! 118 089 vertex spheres) most spheres have none, and computing them was a fifth of
+//! the step. So a step updates a rigid body's touched spheres only, as long as no rigid
+//! body can have moved any of its spheres by more than [`PARTIAL_SKIN_FRACTION`] of the
+//! skin since the last rebuild. The bound is |Δc| + 2 sin(θ/2) r_max (Δc the move of the
+//! mass centre, θ the turn since the rebuild, r_max the body's farthest sphere centre).
+//! Below it no sphere left out can have moved the half skin that makes the list stale,
+//! so the rebuild decisions, hence the step's bits, are those of a full update; above
+//! it (a body on the move), the step updates every sphere.
+
+use std::ops::Range;
+
+use super::contacts::{ContactState, Contacts};
+use super::rigid::RigidState;
+use super::system::{MultiBody, SphereAt};
+
+/// A step updates only the touched spheres while every rigid body's bound stays below
+/// this fraction of the skin. The list goes stale at half the skin; the margin keeps
+/// the rounding of the bound (≈ 1e-8 × r_max) far from deciding.
+pub const PARTIAL_SKIN_FRACTION: f64 = 0.45;
+
+/// Sphere positions, velocities and forces, with what tells a step which to update.
+#[derive(Debug)]
+pub struct SphereBuffers {
+    /// Positions (m): current for every sphere a step updated.
+    pub x: Vec<[f64; 3]>,
+    /// Velocities (m/s), likewise.
+    pub v: Vec<[f64; 3]>,
+    /// Contact forces (N), zero for spheres without a candidate pair.
+    pub f: Vec<[f64; 3]>,
+    /// Per rigid body: the largest distance of a sphere centre from its mass centre.
+    reach: Vec<f64>,
+    /// Per rigid body: centre and orientation at the last rebuild (none until a
+    /// rebuild was seen: after a resume every sphere is updated until the next one).
+    poses: Option<Vec<([f64; 3], [f64; 4])>>,
+    /// The touched rigid spheres, ascending, so grouped by body: body b's are
+    /// `active[ranges[b]]`.
+    active: Vec<u32>,
+    ranges: Vec<Range<usize>>,
+    /// The rebuild count of the list `active` was taken from.
+    active_at: Option<u64>,
+}
+
+/// The rigid spheres a step updates: `active[ranges[b]]` for body b.
+#[derive(Debug, Clone, Copy)]
+pub struct ActiveSpheres<'a> {
+    /// Sphere indices, ascending.
+    pub active: &'a [u32],
+    /// Per rigid body, its run in `active`.
+    pub ranges: &'a [Range<usize>],
+}
+
+impl<'a> ActiveSpheres<'a> {
+    /// Body b's touched spheres.
+    pub fn of(self, b: usize) -> &'a [u32] {
+        &self.active[self.ranges[b].clone()]
+    }
+}
+
+impl SphereBuffers {
+    /// Buffers for `system`'s spheres, nothing known yet.
+    pub fn new(system: &MultiBody) -> Self {
+        let n = system.spheres.len();
+        let reach = system
+            .rigid
+            .iter()
+            .map(|shape| {
+                shape
+                    .spheres
+                    .iter()
+                    .map(|p| (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt())
+                    .fold(0.0, f64::max)
+            })
+            .collect();
+        SphereBuffers {
+            x: vec![[0.0; 3]; n],
+            v: vec![[0.0; 3]; n],
+            f: vec![[0.0; 3]; n],
+            reach,
+            poses: None,
+            active: Vec::new(),
+            ranges: vec![0..0; system.rigid.len()],
+            active_at: None,
+        }
+    }
+
+    /// Forgets the last rebuild (a resumed run): steps update every sphere until the
+    /// next one.
+    pub fn forget(&mut self) {
+        self.poses = None;
+        self.active_at = None;
+    }
+
+    /// Whether a step may update only the touched rigid spheres: the list they come
+    /// from is the current one and no rigid body has moved far enough since its
+    /// rebuild to make a sphere left out count (module doc).
+    pub fn partial(&self, cstate: &ContactState, rigid: &[RigidState], skin: f64) -> bool {
+        let Some(poses) = self.poses.as_ref() else {
+            return false;
+        };
+        let limit = PARTIAL_SKIN_FRACTION * skin;
+        self.active_at == Some(cstate.rebuilds)
+            && rigid
+                .iter()
+                .zip(poses)
+                .zip(&self.reach)
+                .all(|((r, (c, q)), &reach)| moved_bound(r, c, q, reach) <= limit)
+    }
+
+    /// What a gather fills: the touched rigid spheres if `partial` (else all), and
+    /// the position and velocity buffers.
+    pub fn targets(
+        &mut self,
+        partial: bool,
+    ) -> (Option<ActiveSpheres<'_>>, &mut [[f64; 3]], &mut [[f64; 3]]) {
+        let only = partial.then_some(ActiveSpheres {
+            active: &self.active,
+            ranges: &self.ranges,
+        });
+        (only, &mut self.x, &mut self.v)
+    }
+
+    /// The touched rigid spheres of the current list (after [`Self::sync`]).
+    pub fn active(&self) -> ActiveSpheres<'_> {
+        ActiveSpheres {
+            active: &self.active,
+            ranges: &self.ranges,
+        }
+    }
+
+    /// Takes note of the list after an evaluation or refresh: on a rebuild, the rigid
+    /// poses it was built at; for a new list, its touched rigid spheres by body.
+    pub fn sync(
+        &mut self,
+        system: &MultiBody,
+        contacts: &Contacts,
+        cstate: &ContactState,
+        rebuilt: bool,
+        rigid: &[RigidState],
+    ) {
+        if rebuilt {
+            self.poses = Some(rigid.iter().map(|r| (r.position, r.orientation)).collect());
+        }
+        if self.active_at == Some(cstate.rebuilds) && !rebuilt {
+            return;
+        }
+        let first_rigid = system
+            .rigid_spheres
+            .first()
+            .map_or(system.spheres.len(), |r| r.start);
+        self.active.clear();
+        self.active.extend(
+            contacts
+                .touched()
+                .iter()
+                .copied()
+                .filter(|&s| s as usize >= first_rigid),
+        );
+        let mut start = 0;
+        for (b, range) in self.ranges.iter_mut().enumerate() {
+            let end = start
+                + self.active[start..]
+                    .iter()
+                    .take_while(|&&s| {
+                        matches!(system.spheres[s as usize], SphereAt::Rigid { body, .. } if body as usize == b)
+                    })
+                    .count();
+            *range = start..end;
+            start = end;
+        }
+        debug_assert_eq!(start, self.active.len());
+        self.active_at = Some(cstate.rebuilds);
+    }
+}
+
+/// An upper bound on how far any sphere of a rigid body (within `reach` of its centre)
+/// has moved since the pose (`centre`, `orientation`): |Δc| + 2 sin(θ/2) reach, with
+/// cos(θ/2) = |q · q₀| for the unit quaternions.
+fn moved_bound(r: &RigidState, centre: &[f64; 3], orientation: &[f64; 4], reach: f64) -> f64 {
+    let d = [
+        r.position[0] - centre[0],
+        r.position[1] - centre[1],
+        r.position[2] - centre[2],
+    ];
+    let unit = |q: &[f64; 4]| {
+        let n = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
+        [q[0] / n, q[1] / n, q[2] / n, q[3] / n]
+    };
+    let (a, b) = (unit(&r.orientation), unit(orientation));
+    let c = (a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3]).abs();
+    let half_sine = (1.0 - (c * c).min(1.0)).sqrt();
+    (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt() + 2.0 * half_sine * reach
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{UnitQuaternion, Vector3};
+
+    /// The bound holds the true motion of a point at `reach` for a move and a turn.
+    #[test]
+    fn the_bound_covers_a_sphere_moved_and_turned() {
+        let q0 = UnitQuaternion::from_euler_angles(0.3, -0.2, 1.1);
+        let dq = UnitQuaternion::from_axis_angle(&Vector3::y_axis(), 0.02);
+        let q1 = dq * q0;
+        let p = Vector3::new(0.03, -0.01, 0.02);
+        let (c0, c1) = (
+            Vector3::new(1.0, 2.0, 3.0),
+            Vector3::new(1.0004, 2.0, 2.9997),
+        );
+        let before = c0 + q0 * p;
+        let after = c1 + q1 * p;
+        let r = RigidState {
+            position: c1.into(),
+            orientation: [q1.w, q1.i, q1.j, q1.k],
+            velocity: [0.0; 3],
+            angular_momentum: [0.0; 3],
+            force: [0.0; 3],
+            torque: [0.0; 3],
+        };
+        let bound = moved_bound(&r, &c0.into(), &[q0.w, q0.i, q0.j, q0.k], p.norm());
+        let moved = (after - before).norm();
+        assert!(moved <= bound, "moved {moved}, bound {bound}");
+        // Not loose: the turn's chord 2 sin(θ/2) |p| ≤ θ |p| and |Δc| are its parts.
+        assert!(
+            bound <= (c1 - c0).norm() + 0.02 * p.norm() + 1e-12,
+            "bound {bound}"
+        );
+    }
+}
