@@ -193,19 +193,25 @@ impl Contacts {
 
     /// The spheres that have a candidate pair in the current list, ascending. Only
     /// they can carry a force, and only their positions and velocities are read by
-    /// [`Self::evaluate`] unless the list is rebuilt.
+    /// [`Self::forces`].
     pub fn touched(&self) -> &[u32] {
         &self.touched
     }
 
     /// Rebuilds the candidate list if needed (first call, or a sphere moved more than
-    /// half the skin since the last build), keeping the tangential springs of pairs
-    /// that stay.
+    /// half the skin since the last build); whether it did.
     pub fn refresh(&mut self, state: &mut ContactState, positions: &[[f64; 3]]) -> bool {
-        let n = positions.len();
-        if !self.stale(state, positions) {
-            return false;
+        let stale = self.stale(state, positions);
+        if stale {
+            self.rebuild(state, positions);
         }
+        stale
+    }
+
+    /// Rebuilds the candidate list for `positions`, keeping the tangential springs of
+    /// pairs that stay, and the rest of resting pairs.
+    pub fn rebuild(&mut self, state: &mut ContactState, positions: &[[f64; 3]]) {
+        let n = positions.len();
         let mut fresh: Vec<PairState> = self
             .within(positions, self.skin)
             .into_iter()
@@ -262,7 +268,6 @@ impl Contacts {
         state.anchors = positions.to_vec();
         state.rebuilds += 1;
         self.index_gather(&state.pairs, n);
-        true
     }
 
     /// The sphere pairs of different bodies closer than r_i + r_j + `gap`, and the
@@ -368,12 +373,8 @@ impl Contacts {
         }
     }
 
-    /// Contact forces for sphere positions and velocities (the half-step velocities in
-    /// Verlet), written into `forces` (one per sphere; the caller keeps the buffer
-    /// from call to call: only the [`Self::touched`] spheres' entries are rewritten,
-    /// the others are zeroed when the list changes); `dt` advances the tangential
-    /// springs. Unless the list is rebuilt, only the touched spheres' positions and
-    /// velocities are read.
+    /// [`Self::refresh`], then [`Self::forces`]: the list brought up to date, then the
+    /// forces on it.
     pub fn evaluate(
         &mut self,
         state: &mut ContactState,
@@ -383,6 +384,25 @@ impl Contacts {
         forces: &mut [[f64; 3]],
     ) -> ContactTotals {
         let rebuilt = self.refresh(state, positions);
+        let mut totals = self.forces(state, positions, velocities, dt, forces);
+        totals.rebuilt = rebuilt;
+        totals
+    }
+
+    /// Contact forces on the current list for sphere positions and velocities (the
+    /// half-step velocities in Verlet), written into `forces` (one per sphere; the
+    /// caller keeps the buffer from call to call: only the [`Self::touched`] spheres'
+    /// entries are rewritten, the others are zeroed when the list changes); `dt`
+    /// advances the tangential springs. Only the touched spheres' positions and
+    /// velocities are read. The list is not checked: see [`Self::evaluate`].
+    pub fn forces(
+        &mut self,
+        state: &mut ContactState,
+        positions: &[[f64; 3]],
+        velocities: &[[f64; 3]],
+        dt: f64,
+        forces: &mut [[f64; 3]],
+    ) -> ContactTotals {
         let set = &self.set;
         let period = set.period.as_ref();
         let one = |p: &mut PairState| -> (PairForce, f64, bool) {
@@ -482,7 +502,6 @@ impl Contacts {
             totals.mean_overlap /= totals.touching as f64;
         }
         totals.candidates = state.pairs.len();
-        totals.rebuilt = rebuilt;
         let pairs = &state.pairs;
         let (offsets, gather) = (&self.offsets, &self.gather);
         let sum = |(f, &s): (&mut [f64; 3], &u32)| {

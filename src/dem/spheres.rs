@@ -2,7 +2,7 @@
 //!
 //! Each step gathers every sphere's position and velocity from its body, evaluates the
 //! contacts and sums the sphere forces back onto the bodies. Between two rebuilds of
-//! the Verlet list, [`Contacts::evaluate`] reads only the spheres that have a candidate
+//! the Verlet list, [`Contacts::forces`] reads only the spheres that have a candidate
 //! pair ([`Contacts::touched`]); on the paper bed of seed 004 §4 (1 999 rigid stones,
 //! 118 089 vertex spheres) most spheres have none, and computing them was a fifth of
 //! the step. So a step updates a rigid body's touched spheres only, as long as no rigid
@@ -146,7 +146,7 @@ impl SphereBuffers {
         if rebuilt {
             self.poses = Some(rigid.iter().map(|r| (r.position, r.orientation)).collect());
         }
-        if self.active_at == Some(cstate.rebuilds) && !rebuilt {
+        if self.active_at == Some(cstate.rebuilds) {
             return;
         }
         let first_rigid = system

@@ -620,20 +620,18 @@ fn contact_forces(
     let partial = spheres.partial(cstate, rigid, contacts.skin);
     let (only, sx, sv) = spheres.targets(partial);
     gather(system, Some(x), Some(v), rigid, only, sx, sv);
-    if partial && contacts.stale(cstate, &spheres.x) {
-        // A touched sphere moved the half skin: the rebuild needs every sphere.
-        gather(
-            system,
-            Some(x),
-            Some(v),
-            rigid,
-            None,
-            &mut spheres.x,
-            &mut spheres.v,
-        );
+    let stale = contacts.stale(cstate, &spheres.x);
+    if stale {
+        if partial {
+            // A touched sphere moved the half skin: the rebuild needs every sphere.
+            let (x_all, v_all) = (&mut spheres.x, &mut spheres.v);
+            gather(system, Some(x), Some(v), rigid, None, x_all, v_all);
+        }
+        contacts.rebuild(cstate, &spheres.x);
     }
-    let totals = contacts.evaluate(cstate, &spheres.x, &spheres.v, dt, &mut spheres.f);
-    spheres.sync(system, contacts, cstate, totals.rebuilt, rigid);
+    let mut totals = contacts.forces(cstate, &spheres.x, &spheres.v, dt, &mut spheres.f);
+    totals.rebuilt = stale;
+    spheres.sync(system, contacts, cstate, stale, rigid);
     let (sx, sf) = (&spheres.x, &spheres.f);
     for (s, at) in system.spheres.iter().enumerate() {
         if let SphereAt::Node { node, .. } = at {
