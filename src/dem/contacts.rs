@@ -8,6 +8,8 @@
 //! and gathered per sphere in the order of the sphere's pair list: the sums, hence the
 //! whole run, are bitwise the same on any number of threads.
 
+use std::ops::Range;
+
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -182,12 +184,29 @@ impl Contacts {
     /// Whether the candidate list must be rebuilt for `positions`: the first call, or
     /// some sphere has moved more than half the skin since the last build.
     pub fn stale(&self, state: &ContactState, positions: &[[f64; 3]]) -> bool {
+        self.stale_among(state, positions, std::iter::once(0..positions.len()))
+    }
+
+    /// [`Self::stale`], with only the spheres in `ranges` scanned for their move: for a
+    /// caller that knows the others cannot have moved half the skin.
+    pub fn stale_among(
+        &self,
+        state: &ContactState,
+        positions: &[[f64; 3]],
+        ranges: impl IntoIterator<Item = Range<usize>>,
+    ) -> bool {
         let n = positions.len();
+        let limit = 0.25 * self.skin * self.skin;
         state.anchors.len() != n
             || self.offsets.len() != n + 1
-            || positions.iter().zip(&state.anchors).any(|(p, a)| {
-                let d = sub(*p, *a);
-                dot(d, d) > 0.25 * self.skin * self.skin
+            || ranges.into_iter().any(|range| {
+                positions[range.clone()]
+                    .iter()
+                    .zip(&state.anchors[range])
+                    .any(|(p, a)| {
+                        let d = sub(*p, *a);
+                        dot(d, d) > limit
+                    })
             })
     }
 

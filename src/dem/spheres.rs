@@ -5,13 +5,14 @@
 //! the Verlet list, [`Contacts::forces`] reads only the spheres that have a candidate
 //! pair ([`Contacts::touched`]); on the paper bed of seed 004 §4 (1 999 rigid stones,
 //! 118 089 vertex spheres) most spheres have none, and computing them was a fifth of
-//! the step. So a step updates a rigid body's touched spheres only, as long as no rigid
-//! body can have moved any of its spheres by more than [`PARTIAL_SKIN_FRACTION`] of the
-//! skin since the last rebuild. The bound is |Δc| + 2 sin(θ/2) r_max (Δc the move of the
-//! mass centre, θ the turn since the rebuild, r_max the body's farthest sphere centre).
-//! Below it no sphere left out can have moved the half skin that makes the list stale,
-//! so the rebuild decisions, hence the step's bits, are those of a full update; above
-//! it (a body on the move), the step updates every sphere.
+//! the step. So a step updates a rigid body's touched spheres only, as long as that
+//! body cannot have moved any of its spheres by more than [`PARTIAL_SKIN_FRACTION`] of
+//! the skin since the last rebuild. The bound is |Δc| + 2 sin(θ/2) r_max (Δc the move
+//! of the mass centre, θ the turn since the rebuild, r_max the body's farthest sphere
+//! centre). A body above it (on the move) has all its spheres updated, and only those
+//! bodies' spheres and the node spheres are scanned for staleness: below the bound no
+//! sphere left out can have moved the half skin that makes the list stale, so the
+//! rebuild decisions, hence the step's bits, are those of a full update.
 
 use std::ops::Range;
 
@@ -44,6 +45,9 @@ pub struct SphereBuffers {
     ranges: Vec<Range<usize>>,
     /// The rebuild count of the list `active` was taken from.
     active_at: Option<u64>,
+    /// Per rigid body, whether the current step updates all its spheres (see
+    /// [`Self::plan`]).
+    whole: Vec<bool>,
 }
 
 /// The rigid spheres a step updates: `active[ranges[b]]` for body b.
@@ -59,6 +63,23 @@ impl<'a> ActiveSpheres<'a> {
     /// Body b's touched spheres.
     pub fn of(self, b: usize) -> &'a [u32] {
         &self.active[self.ranges[b].clone()]
+    }
+}
+
+/// What a partial step updates: every sphere of the bodies marked `whole`, the touched
+/// ones (`active`) of the others.
+#[derive(Debug, Clone, Copy)]
+pub struct Placement<'a> {
+    /// The touched rigid spheres by body.
+    pub active: ActiveSpheres<'a>,
+    /// Per rigid body, whether all its spheres are updated.
+    pub whole: &'a [bool],
+}
+
+impl<'a> Placement<'a> {
+    /// The spheres of body b the step updates: `None` for all of them.
+    pub fn of(self, b: usize) -> Option<&'a [u32]> {
+        (!self.whole[b]).then(|| self.active.of(b))
     }
 }
 
@@ -86,6 +107,7 @@ impl SphereBuffers {
             active: Vec::new(),
             ranges: vec![0..0; system.rigid.len()],
             active_at: None,
+            whole: vec![true; system.rigid.len()],
         }
     }
 
@@ -96,33 +118,53 @@ impl SphereBuffers {
         self.active_at = None;
     }
 
-    /// Whether a step may update only the touched rigid spheres: the list they come
-    /// from is the current one and no rigid body has moved far enough since its
-    /// rebuild to make a sphere left out count (module doc).
-    pub fn partial(&self, cstate: &ContactState, rigid: &[RigidState], skin: f64) -> bool {
+    /// Plans a step: whether it may update only some rigid spheres (the list they
+    /// come from is the current one), and if so marks `whole` the bodies that have
+    /// moved far enough since the rebuild to make a sphere left out count (module
+    /// doc).
+    pub fn plan(&mut self, cstate: &ContactState, rigid: &[RigidState], skin: f64) -> bool {
         let Some(poses) = self.poses.as_ref() else {
             return false;
         };
+        if self.active_at != Some(cstate.rebuilds) {
+            return false;
+        }
         let limit = PARTIAL_SKIN_FRACTION * skin;
-        self.active_at == Some(cstate.rebuilds)
-            && rigid
-                .iter()
-                .zip(poses)
-                .zip(&self.reach)
-                .all(|((r, (c, q)), &reach)| moved_bound(r, c, q, reach) <= limit)
+        for (((whole, r), (c, q)), &reach) in
+            self.whole.iter_mut().zip(rigid).zip(poses).zip(&self.reach)
+        {
+            *whole = moved_bound(r, c, q, reach) > limit;
+        }
+        true
     }
 
-    /// What a gather fills: the touched rigid spheres if `partial` (else all), and
-    /// the position and velocity buffers.
+    /// What a gather fills: the spheres of a partial step's [`Placement`] if
+    /// `partial` (else all), and the position and velocity buffers.
     pub fn targets(
         &mut self,
         partial: bool,
-    ) -> (Option<ActiveSpheres<'_>>, &mut [[f64; 3]], &mut [[f64; 3]]) {
-        let only = partial.then_some(ActiveSpheres {
-            active: &self.active,
-            ranges: &self.ranges,
+    ) -> (Option<Placement<'_>>, &mut [[f64; 3]], &mut [[f64; 3]]) {
+        let only = partial.then_some(Placement {
+            active: ActiveSpheres {
+                active: &self.active,
+                ranges: &self.ranges,
+            },
+            whole: &self.whole,
         });
         (only, &mut self.x, &mut self.v)
+    }
+
+    /// The spheres a partial step must scan for staleness: the node spheres and every
+    /// sphere of the bodies marked whole, as ranges.
+    pub fn scanned<'s>(&'s self, system: &'s MultiBody) -> impl Iterator<Item = Range<usize>> + 's {
+        std::iter::once(0..system.node_spheres()).chain(
+            system
+                .rigid_spheres
+                .iter()
+                .zip(&self.whole)
+                .filter(|(_, &whole)| whole)
+                .map(|(range, _)| range.clone()),
+        )
     }
 
     /// The touched rigid spheres of the current list (after [`Self::sync`]).
@@ -149,10 +191,7 @@ impl SphereBuffers {
         if self.active_at == Some(cstate.rebuilds) {
             return;
         }
-        let first_rigid = system
-            .rigid_spheres
-            .first()
-            .map_or(system.spheres.len(), |r| r.start);
+        let first_rigid = system.node_spheres();
         self.active.clear();
         self.active.extend(
             contacts

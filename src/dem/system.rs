@@ -23,7 +23,7 @@ use serde::{Deserialize, Serialize};
 use super::contacts::{ContactState, ContactTotals, Contacts, SphereSet};
 use super::law::cross;
 use super::rigid::{RigidShape, RigidState};
-use super::spheres::{ActiveSpheres, SphereBuffers};
+use super::spheres::{Placement, SphereBuffers};
 use crate::qdem::{stability, Boundary, QdemModel, QdemOptions, QdemSolver, State};
 use crate::{Error, Result};
 
@@ -216,6 +216,13 @@ pub struct MultiBodySolver<'m> {
 }
 
 impl MultiBody {
+    /// How many node spheres lead `spheres` (the rigid bodies' follow).
+    pub fn node_spheres(&self) -> usize {
+        self.rigid_spheres
+            .first()
+            .map_or(self.spheres.len(), |r| r.start)
+    }
+
     /// The system at rest: QDEM state in the reference configuration, rigid bodies in
     /// their initial placements, no contacts yet.
     pub fn at_rest(&self) -> MultiState {
@@ -485,13 +492,13 @@ type SphereSlices<'a> = (&'a mut [[f64; 3]], &'a mut [[f64; 3]]);
 
 /// Sphere positions and velocities from the node arrays and the rigid states: every
 /// node sphere, and of the rigid bodies every sphere, or only the `only` ones
-/// ([`SphereBuffers::partial`]).
+/// ([`SphereBuffers::plan`]).
 fn gather(
     system: &MultiBody,
     x: Option<&[[f64; 3]]>,
     v: Option<&[[f64; 3]]>,
     rigid: &[RigidState],
-    only: Option<ActiveSpheres>,
+    only: Option<Placement>,
     sx: &mut [[f64; 3]],
     sv: &mut [[f64; 3]],
 ) {
@@ -504,10 +511,7 @@ fn gather(
         _ => vec![nalgebra::Matrix3::identity(); system.deformable.len()],
     };
     // Node spheres come first, then each rigid body's in one run (see `spheres`).
-    let (total, nodes) = (
-        sx.len(),
-        system.rigid_spheres.first().map_or(sx.len(), |r| r.start),
-    );
+    let (total, nodes) = (sx.len(), system.node_spheres());
     let (sx_nodes, mut sx_rigid) = sx.split_at_mut(nodes);
     let (sv_nodes, mut sv_rigid) = sv.split_at_mut(nodes);
     let node = |(s, (px, pv)): (usize, (&mut [f64; 3], &mut [f64; 3]))| {
@@ -542,7 +546,7 @@ fn gather(
     }
     let body = |(b, (px, pv)): (usize, &mut SphereSlices)| {
         let (r, shape) = (&rigid[b], &system.rigid[b]);
-        let mine = only.map(|o| o.of(b));
+        let mine = only.and_then(|o| o.of(b));
         if mine.is_some_and(|m| m.is_empty()) {
             return;
         }
@@ -617,10 +621,14 @@ fn contact_forces(
     dt: f64,
     spheres: &mut SphereBuffers,
 ) -> ContactTotals {
-    let partial = spheres.partial(cstate, rigid, contacts.skin);
+    let partial = spheres.plan(cstate, rigid, contacts.skin);
     let (only, sx, sv) = spheres.targets(partial);
     gather(system, Some(x), Some(v), rigid, only, sx, sv);
-    let stale = contacts.stale(cstate, &spheres.x);
+    let stale = if partial {
+        contacts.stale_among(cstate, &spheres.x, spheres.scanned(system))
+    } else {
+        contacts.stale(cstate, &spheres.x)
+    };
     if stale {
         if partial {
             // A touched sphere moved the half skin: the rebuild needs every sphere.
@@ -741,6 +749,12 @@ mod tests {
     /// One rigid 0.2 × 0.2 × 0.1 m block (2700 kg/m³) with spheres of radius 10 mm at
     /// its 8 corners inset by r along the diagonal (touching the faces), on the floor.
     fn block_on_floor(mu: f64, gravity: [f64; 3]) -> MultiBody {
+        blocks_on_floor(&[([0.0; 3], mu)], gravity)
+    }
+
+    /// [`block_on_floor`]'s block at each offset, each with its own friction against
+    /// the floor (material b for block b).
+    fn blocks_on_floor(blocks: &[([f64; 3], f64)], gravity: [f64; 3]) -> MultiBody {
         let (nodes, tets) = structured_box(Vector3::new(0.2, 0.2, 0.1), [1, 1, 1]);
         let r = 0.01;
         let corners: Vec<Point3<f64>> = nodes
@@ -750,35 +764,55 @@ mod tests {
                 Point3::new(c(p.x, 0.2), c(p.y, 0.2), c(p.z, 0.1))
             })
             .collect();
-        let shape = RigidShape::from_tets(&nodes, &tets, 2700.0, &corners).unwrap();
         let m = SphereMaterial {
             normal_stiffness: 1e8,
             tangential_stiffness: 4e7,
         };
         let n = corners.len();
+        let count = blocks.len();
+        let shift = |points: &[Point3<f64>], o: [f64; 3]| -> Vec<Point3<f64>> {
+            points.iter().map(|p| p + Vector3::from(o)).collect()
+        };
+        let rigid = blocks
+            .iter()
+            .map(|&(o, _)| {
+                RigidShape::from_tets(&shift(&nodes, o), &tets, 2700.0, &shift(&corners, o))
+                    .unwrap()
+            })
+            .collect();
+        // Material b meets the floor (material 0) with block b's µ; blocks never meet.
+        let laws = (0..count * count)
+            .map(|ab| ContactLaw::between(&m, &m, blocks[ab % count.max(1)].1, 0.1))
+            .collect();
+        let owner: Vec<u32> = (0..count * n).map(|s| (s / n) as u32).collect();
         MultiBody {
             model: None,
             boundary: Boundary::default(),
-            rigid: vec![shape],
-            bodies: vec![BodyKind::Rigid { index: 0 }],
-            spheres: (0..n as u32)
-                .map(|k| SphereAt::Rigid { body: 0, k })
+            rigid,
+            bodies: (0..count as u32)
+                .map(|index| BodyKind::Rigid { index })
                 .collect(),
-            rigid_spheres: std::iter::once(0..n).collect(),
+            spheres: (0..(count * n) as u32)
+                .map(|s| SphereAt::Rigid {
+                    body: s / n as u32,
+                    k: s % n as u32,
+                })
+                .collect(),
+            rigid_spheres: (0..count).map(|b| b * n..(b + 1) * n).collect(),
             deformable: Vec::new(),
             insets: false,
             set: SphereSet {
-                radius: vec![r; n],
-                owner: vec![0; n],
-                material: vec![0; n],
-                mass: vec![10.8; n],
+                radius: vec![r; count * n],
+                material: owner.iter().map(|&b| b as u16).collect(),
+                owner,
+                mass: vec![10.8; count * n],
                 planes: vec![Plane {
                     point: [0.0; 3],
                     normal: [0.0, 0.0, 1.0],
                     material: 0,
                 }],
-                laws: vec![ContactLaw::between(&m, &m, mu, 0.1)],
-                materials: 1,
+                laws,
+                materials: count,
                 period: None,
                 shared_rest: false,
             },
@@ -810,16 +844,22 @@ mod tests {
     }
 
     /// The skin sets the cost, not the result: a block dropped 1 cm onto a 35° slope
-    /// slides 3 cm down it. Its list is rebuilt dozens of times, and its top spheres
-    /// are in none, so steps update only the bottom ones while the block has moved
-    /// little since the last rebuild; while it falls it touches nothing and only the
-    /// bound on its motion brings the spheres up to date. It lands, and ends in the
-    /// same bits with skins of 0.25, 1 and 4 mm, and with the same time step.
+    /// slides 3 cm down it, beside a second block that rests on the slope (µ = 2). The
+    /// lists are rebuilt dozens of times, and the top spheres are in none, so steps
+    /// update only the bottom ones while a block has moved little since the last
+    /// rebuild: both blocks' while the first one rests or slides slowly, the resting
+    /// block's alone while the first one falls (then it touches nothing, and only the
+    /// bound on its motion brings its spheres up to date and into the staleness
+    /// scan). It lands, and both end in the same bits with skins of 0.25, 1 and 4 mm,
+    /// and with the same time step.
     #[test]
     fn the_skin_changes_the_cost_not_the_bits() {
         let g = 9.81;
         let theta = 35f64.to_radians();
-        let mut system = block_on_floor(0.5, [g * theta.sin(), 0.0, -g * theta.cos()]);
+        let mut system = blocks_on_floor(
+            &[([0.0; 3], 0.5), ([0.0, 1.0, -0.01], 2.0)],
+            [g * theta.sin(), 0.0, -g * theta.cos()],
+        );
         system.set.planes[0].point = [0.0, 0.0, -0.01];
         let run = |skin: f64| {
             let mut state = system.at_rest();
@@ -828,19 +868,24 @@ mod tests {
             for _ in 0..10_000 {
                 solver.step(&mut state).unwrap();
             }
-            (
-                state.rigid[0].clone(),
-                state.contacts.rebuilds,
-                stable.contact,
-            )
+            (state.rigid.clone(), state.contacts.rebuilds, stable.contact)
         };
         let (reference, rebuilds, stable) = run(1e-3);
-        assert!(reference.position[0] - system.rigid[0].centre[0] > 0.02);
+        let moved = |b: usize| {
+            let (now, then) = (reference[b].position, system.rigid[b].centre);
+            [now[0] - then[0], now[1] - then[1], now[2] - then[2]]
+        };
+        assert!(moved(0)[0] > 0.02, "the first block slides: {:?}", moved(0));
         // On the slope: sunk by its weight's share (≈ 10 µm), not through it.
-        let height = reference.position[2] - (system.rigid[0].centre[2] - 0.01);
+        let height = moved(0)[2] + 0.01;
         assert!(
             height.abs() < 1e-4,
             "height above the resting level {height}"
+        );
+        let rest = moved(1);
+        assert!(
+            rest.iter().all(|d| d.abs() < 2e-5),
+            "the second block stays: {rest:?}"
         );
         for skin in [2.5e-4, 4e-3] {
             let (rigid, r, s) = run(skin);
