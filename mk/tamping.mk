@@ -3,7 +3,8 @@
 # (part of `make bench`) runs the seed's Table 3 case in its three versions: hours on
 # 2 cores, and it needs the table3 bed (`make pack-presets`); TAMPING_BENCH_STEPS=N runs
 # the first N of its 2 272 steps, TAMPING_BENCH_PRESET=quick the quick bed instead,
-# TAMPING_BENCH_REPEAT=R every version R times in turn (medians).
+# TAMPING_BENCH_REPEAT=R every version R times in turn (medians). With R = 1 a stopped
+# bench resumes: finished versions are reused, killed ones resumed (tools/tamping_report.py).
 # Included by the main Makefile, which defines PY, RELEASE, RUST_SOURCES, VENV_STAMP and
 # PACK_QUICK (mk/pack.mk).
 

@@ -977,6 +977,11 @@ fn a_killed_tamping_run_resumes_to_the_same_state() {
             .count()
     };
     assert!(rows(&killed) < rows(&whole), "killed before the end");
+    let clocks = |dir: &Path| -> Value {
+        serde_json::from_str(&std::fs::read_to_string(dir.join("checkpoint-clocks.json")).unwrap())
+            .unwrap()
+    };
+    let saved = clocks(&killed);
     let resumed = tamping_command(&killed, &short)
         .arg("--resume")
         .arg(&killed)
@@ -984,6 +989,35 @@ fn a_killed_tamping_run_resumes_to_the_same_state() {
         .unwrap();
     assert_success(&resumed);
     assert!(String::from_utf8_lossy(&resumed.stdout).contains("resumed from"));
+    // The summary's wall times cover both pieces: the clocks saved with the checkpoint
+    // plus the resumed run's (unless the kill fell between writing the checkpoint and
+    // its clocks, which the run says).
+    let summary: Value =
+        serde_json::from_str(&std::fs::read_to_string(killed.join("summary.json")).unwrap())
+            .unwrap();
+    let figures = &summary["figures"];
+    if figures["wall_times_complete"] == true {
+        assert_eq!(figures["pieces"], 2, "{figures}");
+        assert_eq!(saved["pieces"], 1);
+        let (before, total) = (
+            saved["stepping_s"].as_f64().unwrap(),
+            figures["stepping_s"].as_f64().unwrap(),
+        );
+        assert!(before > 0.0 && total > before, "{before} then {total}");
+        let solve = |v: &Value| {
+            v.as_array()
+                .unwrap()
+                .iter()
+                .find(|p| p[0] == "solve")
+                .unwrap()[1]
+                .as_f64()
+                .unwrap()
+        };
+        assert!(summary["wall_time_s"]["solve"].as_f64().unwrap() > solve(&saved["phases"]));
+    } else {
+        assert!(String::from_utf8_lossy(&resumed.stdout).contains("no wall times for step"));
+    }
+    assert_eq!(clocks(&killed)["pieces"], 2);
     for file in [
         "checkpoint.bin",
         "residuals.csv",

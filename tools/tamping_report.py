@@ -14,7 +14,11 @@
       asynchronous run's compactness against the synchronous one's (issue #7: within
       2 %; the seed: 1.7 %). With --repeat R the versions run R times in turn and
       every wall time is the median of its R runs (the runs of one version give the
-      same results, bit for bit).
+      same results, bit for bit). With one run per version the bench survives being
+      stopped: each version's directory keeps the command and a hash of the binary
+      it ran with, a finished version is reused and a killed one resumed from its
+      checkpoint (written every 100 steps) when both are unchanged; the summary's
+      wall times then add up the pieces (`pieces` says how many).
   tamping_report.py ensemble --pack BIN --nscd BIN --seeds N --out DIR
       the asynchronous driver against the synchronous one over N quick beds (seeds 1
       to N of `ballast-pack --preset quick`): each bed is tamped with both drivers
@@ -28,9 +32,11 @@
 """
 
 import csv
+import hashlib
 import json
 import os
 import re
+import signal
 import statistics
 import subprocess
 import sys
@@ -143,7 +149,42 @@ def median_times(summaries):
     return {k: statistics.median(r[k] for r in runs) for k in runs[0]}
 
 
+def binary_hash(path):
+    with open(path, "rb") as f:
+        return hashlib.sha256(f.read()).hexdigest()
+
+
+def run_version(cmd, directory, nscd, resumable):
+    """Runs `cmd` (without --out) into `directory`. With `resumable`, a finished run
+    of the same command and binary there is reused, and a killed one resumed from
+    its checkpoint; anything else starts afresh."""
+    stamp_path = os.path.join(directory, "bench-command.json")
+    stamp = {"command": cmd, "binary_sha256": binary_hash(nscd)}
+    try:
+        with open(stamp_path) as f:
+            same = resumable and json.load(f) == stamp
+    except (OSError, ValueError):
+        same = False
+    summary = os.path.join(directory, "summary.json")
+    if same and os.path.exists(summary):
+        print("tamping_report: reusing", directory, file=sys.stderr, flush=True)
+        return
+    if same and os.path.exists(os.path.join(directory, "checkpoint.bin")):
+        print("tamping_report: resuming", directory, file=sys.stderr, flush=True)
+        subprocess.run(cmd + ["--resume", directory], check=True, stdout=subprocess.DEVNULL)
+        return
+    os.makedirs(directory, exist_ok=True)
+    for stale in (summary, os.path.join(directory, "checkpoint.bin")):
+        if os.path.exists(stale):
+            os.remove(stale)
+    with open(stamp_path, "w") as f:
+        json.dump(stamp, f, indent=1)
+    subprocess.run(cmd + ["--out", directory], check=True, stdout=subprocess.DEVNULL)
+
+
 def bench(nscd, preset, steps, out, repeat=1):
+    # A stopped bench (SIGTERM) still removes its scene copy and leaves its runs to resume.
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
     os.makedirs(out, exist_ok=True)
     # The preset's step, from the summary of a one-step run (the same for every version).
     with tempfile.TemporaryDirectory() as probe:
@@ -160,13 +201,14 @@ def bench(nscd, preset, steps, out, repeat=1):
         for version, (name, driver, threads, balanced) in VERSIONS.items():
             d = os.path.join(out, "version-%d" % version)
             scene = balanced_scene(balanced) if balanced else SCENE
-            cmd = [nscd, scene, "--preset", preset, "--out", d,
+            cmd = [nscd, scene, "--preset", preset,
                    "--threads", str(threads), "--set", "ddm.driver=\"%s\"" % driver,
-                   "--set", "output.frames=2", "--set", "time.duration=%r" % (steps * dt)]
-            print("tamping_report: run %d/%d:" % (r + 1, repeat), " ".join(cmd),
+                   "--set", "output.frames=2", "--set", "output.checkpoint_every=100",
+                   "--set", "time.duration=%r" % (steps * dt)]
+            print("tamping_report: run %d/%d:" % (r + 1, repeat), " ".join(cmd), "into", d,
                   file=sys.stderr, flush=True)
             try:
-                subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
+                run_version(cmd, d, nscd, resumable=repeat == 1)
             finally:
                 if scene != SCENE:
                     os.remove(scene)
@@ -194,6 +236,12 @@ def bench(nscd, preset, steps, out, repeat=1):
             seed = SEED_TABLE3[v][seed_col[key]] if key in seed_col and v in SEED_TABLE3 else None
             cells.append("%.2f" % value + (" [%d]" % seed if seed is not None else ""))
         print("| %s | %s |" % (label, " | ".join(cells)))
+    for v, s in results.items():
+        pieces = s["figures"].get("pieces", 1)
+        if pieces > 1:
+            print("\nversion %d ran in %d pieces (stopped and resumed); its times add them up%s"
+                  % (v, pieces, "" if s["figures"].get("wall_times_complete", True)
+                     else ", except a piece whose clocks were lost"))
     print("\n## Speedup and efficiency against version 1 (Table 2 layout)\n")
     print("| version | threads | NLGS speedup | NLGS efficiency | full speedup | full efficiency | seed full speedup |")
     print("|---|---|---|---|---|---|---|")

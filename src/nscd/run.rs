@@ -28,7 +28,7 @@ use super::nlgs::{ErrorCheck, NlgsOptions, Stopping};
 use super::scene::{DrivenBody, Model, NscdScene};
 use super::step::{MoreauJean, SolvedContact, StepParams};
 use crate::ddm::Partitioning;
-use crate::output::{write_json, CsvSeries, Grid, PvdWriter};
+use crate::output::{write_json, CsvSeries, Grid, PvdWriter, RunClocks, CLOCKS_FILE};
 use crate::pack::contacts::warm_memory;
 use crate::scene::{PhaseTimer, RunContext, Summary};
 use crate::{Error, Result};
@@ -218,7 +218,26 @@ pub fn run_with(ctx: &RunContext, resume: bool) -> Result<()> {
             contacts.len()
         );
     }
+    // Wall time of the pieces before this one (a resumed run), from the clocks beside
+    // the checkpoint.
+    let mut before = RunClocks::default();
+    let mut clocks_known = true;
     if let Some(c) = resumed {
+        match RunClocks::read(&ctx.out_dir, c.step) {
+            Some(clocks) => {
+                clocks.merge_into(&mut timer);
+                before = clocks;
+            }
+            None => {
+                clocks_known = false;
+                println!(
+                    "ballast-nscd: note: {} has no wall times for step {}; the summary's \
+                     times cover this run only",
+                    ctx.out_dir.join(CLOCKS_FILE).display(),
+                    c.step
+                );
+            }
+        }
         pipeline.set_memory(c.restore(&checkpoint_path, &mut bodies)?);
         first_step = c.step + 1;
         let state = c.extra;
@@ -326,6 +345,9 @@ pub fn run_with(ctx: &RunContext, resume: bool) -> Result<()> {
             )
             .write(&checkpoint_path)?;
             timer.add("checkpoints", clock.elapsed());
+            let stepping = before.stepping_s + start.elapsed().as_secs_f64() - frames_s;
+            let frames = before.frames_s + frames_s;
+            RunClocks::at(step, before.pieces + 1, stepping, frames, &timer).write(&ctx.out_dir)?;
         }
         if !report.kinetic_energy.is_finite() {
             bar.abandon();
@@ -335,7 +357,8 @@ pub fn run_with(ctx: &RunContext, resume: bool) -> Result<()> {
         }
     }
     bar.finish_and_clear();
-    let stepping_s = start.elapsed().as_secs_f64() - frames_s;
+    let stepping_s = before.stepping_s + start.elapsed().as_secs_f64() - frames_s;
+    let frames_s = before.frames_s + frames_s;
     timer.add("vtk frames", std::time::Duration::from_secs_f64(frames_s));
 
     // The final configuration's interpenetration (not just the last step's start).
@@ -387,7 +410,9 @@ pub fn run_with(ctx: &RunContext, resume: bool) -> Result<()> {
             "contact_updates_per_s",
             stats.sweeps_contacts as f64 / timer.get("solve").as_secs_f64().max(1e-12),
         )
-        .figure("stepping_s", stepping_s);
+        .figure("stepping_s", stepping_s)
+        .figure("pieces", before.pieces + 1)
+        .figure("wall_times_complete", clocks_known);
     if let Some((depth, at, a, b)) = stats.deepest {
         summary = summary.figure(
             "deepest_overlap",

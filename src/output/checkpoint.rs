@@ -8,15 +8,77 @@
 //! checkpoint or the new one, never half of one. Reading checks the tag and the scene
 //! before decoding the rest, so a damaged file, another tool's file and a checkpoint
 //! of another scene each give one line naming the file.
+//!
+//! The wall time a run spent up to a checkpoint is kept beside it, in
+//! [`CLOCKS_FILE`] ([`RunClocks`]), not in it: a resumed run's checkpoint stays
+//! byte-identical to an uninterrupted run's, and the summary of a run done in pieces
+//! still reports the time of all of them.
 
 use std::path::Path;
+use std::time::Duration;
 
 use serde::{de::DeserializeOwned, Deserialize, Serialize};
 
+use crate::scene::PhaseTimer;
 use crate::{Error, Result};
 
 /// The file name in a run's output directory.
 pub const CHECKPOINT_FILE: &str = "checkpoint.bin";
+
+/// The file beside the checkpoint with the wall time spent up to it.
+pub const CLOCKS_FILE: &str = "checkpoint-clocks.json";
+
+/// Wall time a run spent up to a checkpoint, over all the pieces it was run in.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct RunClocks {
+    /// The checkpoint's step.
+    pub step: u64,
+    /// How many runs (the first and each resume) the time was spent in.
+    pub pieces: u32,
+    /// Time stepping, output excluded (s).
+    pub stepping_s: f64,
+    /// Time writing frames (s).
+    pub frames_s: f64,
+    /// Wall time per named phase (s), in the order they first ran.
+    pub phases: Vec<(String, f64)>,
+}
+
+impl RunClocks {
+    /// The clocks at checkpoint `step` of a run in its `pieces`-th piece.
+    pub fn at(step: u64, pieces: u32, stepping_s: f64, frames_s: f64, timer: &PhaseTimer) -> Self {
+        RunClocks {
+            step,
+            pieces,
+            stepping_s,
+            frames_s,
+            phases: timer
+                .phases()
+                .map(|(name, total)| (name.to_string(), total.as_secs_f64()))
+                .collect(),
+        }
+    }
+
+    /// Writes the clocks atomically into `dir` (after its checkpoint).
+    pub fn write(&self, dir: &Path) -> Result<()> {
+        crate::output::write_json(dir.join(CLOCKS_FILE), self)
+    }
+
+    /// The clocks saved in `dir` for checkpoint `step`; `None` when there are none or
+    /// they belong to another checkpoint (the run was killed between writing the two).
+    pub fn read(dir: &Path, step: u64) -> Option<Self> {
+        let text = std::fs::read_to_string(dir.join(CLOCKS_FILE)).ok()?;
+        serde_json::from_str::<RunClocks>(&text)
+            .ok()
+            .filter(|c| c.step == step)
+    }
+
+    /// Adds the saved phases into `timer` (a resumed run's).
+    pub fn merge_into(&self, timer: &mut PhaseTimer) {
+        for (name, seconds) in &self.phases {
+            timer.add(name, Duration::from_secs_f64(*seconds));
+        }
+    }
+}
 
 /// The leading fields every checkpoint record starts with.
 #[derive(Deserialize)]
@@ -78,6 +140,21 @@ mod tests {
         format: String,
         scene: String,
         x: Vec<f64>,
+    }
+
+    #[test]
+    fn clocks_read_back_for_their_step_only() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut timer = PhaseTimer::new();
+        timer.add("solve", Duration::from_millis(1500));
+        let clocks = RunClocks::at(200, 1, 2.0, 0.25, &timer);
+        clocks.write(dir.path()).unwrap();
+        assert_eq!(RunClocks::read(dir.path(), 200), Some(clocks.clone()));
+        assert_eq!(RunClocks::read(dir.path(), 300), None);
+        let mut resumed = PhaseTimer::new();
+        resumed.add("solve", Duration::from_millis(500));
+        clocks.merge_into(&mut resumed);
+        assert_eq!(resumed.get("solve"), Duration::from_secs(2));
     }
 
     #[test]
