@@ -996,8 +996,7 @@ fn a_killed_tamping_run_resumes_to_the_same_state() {
         serde_json::from_str(&std::fs::read_to_string(killed.join("summary.json")).unwrap())
             .unwrap();
     let figures = &summary["figures"];
-    if figures["wall_times_complete"] == true {
-        assert_eq!(figures["pieces"], 2, "{figures}");
+    if common::assert_two_pieces(figures, &resumed) {
         assert_eq!(saved["pieces"], 1);
         let (before, total) = (
             saved["stepping_s"].as_f64().unwrap(),
@@ -1014,8 +1013,6 @@ fn a_killed_tamping_run_resumes_to_the_same_state() {
                 .unwrap()
         };
         assert!(summary["wall_time_s"]["solve"].as_f64().unwrap() > solve(&saved["phases"]));
-    } else {
-        assert!(String::from_utf8_lossy(&resumed.stdout).contains("no wall times for step"));
     }
     assert_eq!(clocks(&killed)["pieces"], 2);
     for file in [

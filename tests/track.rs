@@ -383,6 +383,10 @@ fn the_track_run_does_not_depend_on_the_thread_count_and_resumes_bit_for_bit() {
     ] {
         assert_eq!(a[key], b[key], "{key} after the resume");
     }
+    // The wall times add both pieces up.
+    if common::assert_two_pieces(&b, &resumed) {
+        assert!(b["run_stepping_s"].as_f64().unwrap() > b["stepping_s"].as_f64().unwrap());
+    }
     // Resuming with other arguments, or from a damaged checkpoint, is one line.
     let other = qdem(&killed, &args(&["--set", "track.duration=\"2 ms\""]))
         .arg("--resume")

@@ -27,7 +27,8 @@ use super::loads::RailSeatLoads;
 use super::scene::{DtSpec, TrackScene};
 use crate::dem::{MultiBodySolver, MultiState};
 use crate::output::{
-    read_checkpoint, write_checkpoint, write_json, CsvSeries, Grid, PvdWriter, CHECKPOINT_FILE,
+    read_checkpoint, write_checkpoint, write_json, CsvSeries, Grid, PvdWriter, RunClocks,
+    CHECKPOINT_FILE, CLOCKS_FILE,
 };
 use crate::pack::Packing;
 use crate::post::track_sensors::QUANTITIES;
@@ -142,6 +143,10 @@ pub fn run(ctx: &RunContext, force: bool, resume: bool) -> Result<()> {
         kinetic_after_settling: state.kinetic(),
         ..LoopFigures::default()
     };
+    // Wall time of the pieces before this one (a resumed run), from the clocks beside
+    // the checkpoint.
+    let mut before = RunClocks::default();
+    let mut clocks_known = true;
     let mut out = match resumed {
         Some(c) => {
             // The scene text matched; the packing it names must still give these bodies.
@@ -162,6 +167,21 @@ pub fn run(ctx: &RunContext, force: bool, resume: bool) -> Result<()> {
                         packing_path.display()
                     ),
                 ));
+            }
+            match RunClocks::read(&ctx.out_dir, c.state.step) {
+                Some(clocks) => {
+                    clocks.merge_into(&mut timer);
+                    before = clocks;
+                }
+                None => {
+                    clocks_known = false;
+                    say(format_args!(
+                        "ballast-qdem: note: {} has no wall times for step {}; the \
+                         summary's times cover this run only",
+                        ctx.out_dir.join(CLOCKS_FILE).display(),
+                        c.state.step
+                    ));
+                }
             }
             let clock = c.state.step as f64 * dt - settled;
             let out = Outputs::open(ctx, &track, Some((clock, c.state.time, c.frames)))?;
@@ -224,6 +244,10 @@ pub fn run(ctx: &RunContext, force: bool, resume: bool) -> Result<()> {
                 },
             )?;
             out.frame_s += clock.elapsed().as_secs_f64();
+            let stepping = before.stepping_s + started.elapsed().as_secs_f64() - out.frame_s;
+            let frames = before.frames_s + out.frame_s;
+            RunClocks::at(state.step, before.pieces + 1, stepping, frames, &timer)
+                .write(&ctx.out_dir)?;
         }
         if state.step % 256 == 0 {
             bar.set_position(state.step);
@@ -231,12 +255,14 @@ pub fn run(ctx: &RunContext, force: bool, resume: bool) -> Result<()> {
     }
     bar.finish_and_clear();
     let stepping = started.elapsed().as_secs_f64() - out.frame_s;
-    timer.add("stepping", std::time::Duration::from_secs_f64(stepping));
+    let run_stepping = before.stepping_s + stepping;
+    timer.add("stepping", std::time::Duration::from_secs_f64(run_stepping));
     timer.add(
         "frames and checkpoints",
-        std::time::Duration::from_secs_f64(out.frame_s),
+        std::time::Duration::from_secs_f64(before.frames_s + out.frame_s),
     );
-    // Throughput of this process's steps (a resumed run counts from its checkpoint).
+    // Throughput of this process's steps (a resumed run counts from its checkpoint);
+    // the wall times cover every piece of the run.
     let touching_sum = figures.touching_sum - touching_before;
     let steps_here = (state.step - first_step) as f64;
     let LoopFigures {
@@ -306,6 +332,10 @@ pub fn run(ctx: &RunContext, force: bool, resume: bool) -> Result<()> {
             "simulated_s_per_wall_hour",
             steps_here * dt / stepping * 3600.0,
         )
+        .figure("stepping_s", stepping)
+        .figure("run_stepping_s", run_stepping)
+        .figure("pieces", before.pieces + 1)
+        .figure("wall_times_complete", clocks_known)
         .figure("list_rebuilds", state.contacts.rebuilds)
         .figure("candidate_pairs", solver.last.candidates)
         .figure("peak_memory_mib", peak_memory_mib())

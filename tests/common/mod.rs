@@ -82,6 +82,21 @@ pub fn figure(figures: &Value, name: &str) -> f64 {
         .unwrap_or_else(|| panic!("figure {name} missing: {figures}"))
 }
 
+/// A run killed once and resumed reports two pieces in its summary `figures` — unless
+/// the kill fell between writing a checkpoint and its clocks, which the resumed run
+/// says on stdout. Whether the pieces were counted.
+#[allow(dead_code)]
+pub fn assert_two_pieces(figures: &Value, resumed: &Output) -> bool {
+    if figures["wall_times_complete"] == true {
+        assert_eq!(figures["pieces"], 2, "{figures}");
+        true
+    } else {
+        let out = String::from_utf8_lossy(&resumed.stdout);
+        assert!(out.contains("no wall times for step"), "{out}");
+        false
+    }
+}
+
 /// Spawns `command` (its output discarded), waits until it has written `checkpoint`
 /// (panics if it ends first, or after 300 s), lets it run `after` longer and returns
 /// the running child, for the caller to kill with SIGKILL.
