@@ -28,7 +28,7 @@ use super::nlgs::{ErrorCheck, NlgsOptions, Stopping};
 use super::scene::{DrivenBody, Model, NscdScene};
 use super::step::{MoreauJean, SolvedContact, StepParams};
 use crate::ddm::Partitioning;
-use crate::output::{write_json, CsvSeries, Grid, PvdWriter, RunClocks, CLOCKS_FILE};
+use crate::output::{write_json, CsvSeries, Grid, PvdWriter, RunClocks};
 use crate::pack::contacts::warm_memory;
 use crate::scene::{PhaseTimer, RunContext, Summary};
 use crate::{Error, Result};
@@ -223,19 +223,11 @@ pub fn run_with(ctx: &RunContext, resume: bool) -> Result<()> {
     let mut before = RunClocks::default();
     let mut clocks_known = true;
     if let Some(c) = resumed {
-        match RunClocks::read(&ctx.out_dir, c.step) {
-            Some(clocks) => {
-                clocks.merge_into(&mut timer);
-                before = clocks;
-            }
-            None => {
+        match RunClocks::resume(&ctx.out_dir, c.step, &mut timer) {
+            Ok(clocks) => before = clocks,
+            Err(note) => {
                 clocks_known = false;
-                println!(
-                    "ballast-nscd: note: {} has no wall times for step {}; the summary's \
-                     times cover this run only",
-                    ctx.out_dir.join(CLOCKS_FILE).display(),
-                    c.step
-                );
+                println!("ballast-nscd: {note}");
             }
         }
         pipeline.set_memory(c.restore(&checkpoint_path, &mut bodies)?);
@@ -345,9 +337,10 @@ pub fn run_with(ctx: &RunContext, resume: bool) -> Result<()> {
             )
             .write(&checkpoint_path)?;
             timer.add("checkpoints", clock.elapsed());
-            let stepping = before.stepping_s + start.elapsed().as_secs_f64() - frames_s;
-            let frames = before.frames_s + frames_s;
-            RunClocks::at(step, before.pieces + 1, stepping, frames, &timer).write(&ctx.out_dir)?;
+            let stepping = start.elapsed().as_secs_f64() - frames_s;
+            before
+                .then(step, stepping, frames_s, &timer)
+                .write(&ctx.out_dir)?;
         }
         if !report.kinetic_energy.is_finite() {
             bar.abandon();

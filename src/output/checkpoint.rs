@@ -58,6 +58,34 @@ impl RunClocks {
         }
     }
 
+    /// The clocks at checkpoint `step` of the piece that follows these (the first
+    /// piece follows the default clocks): this piece's stepping and frame times added.
+    pub fn then(&self, step: u64, stepping_s: f64, frames_s: f64, timer: &PhaseTimer) -> Self {
+        let (stepping, frames) = (self.stepping_s + stepping_s, self.frames_s + frames_s);
+        RunClocks::at(step, self.pieces + 1, stepping, frames, timer)
+    }
+
+    /// For a run resumed at checkpoint `step` in `dir`: the clocks of the pieces
+    /// before it, merged into its `timer`; when they are not known, the note the tool
+    /// prints (its summary's times then cover this piece only).
+    pub fn resume(
+        dir: &Path,
+        step: u64,
+        timer: &mut PhaseTimer,
+    ) -> std::result::Result<Self, String> {
+        match Self::read(dir, step) {
+            Some(clocks) => {
+                clocks.merge_into(timer);
+                Ok(clocks)
+            }
+            None => Err(format!(
+                "note: {} has no wall times for step {step}; the summary's times cover this \
+                 run only",
+                dir.join(CLOCKS_FILE).display()
+            )),
+        }
+    }
+
     /// Writes the clocks atomically into `dir` (after its checkpoint).
     pub fn write(&self, dir: &Path) -> Result<()> {
         crate::output::write_json(dir.join(CLOCKS_FILE), self)
@@ -147,13 +175,28 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let mut timer = PhaseTimer::new();
         timer.add("solve", Duration::from_millis(1500));
-        let clocks = RunClocks::at(200, 1, 2.0, 0.25, &timer);
+        let clocks = RunClocks::default().then(200, 2.0, 0.25, &timer);
+        assert_eq!(clocks, RunClocks::at(200, 1, 2.0, 0.25, &timer));
         clocks.write(dir.path()).unwrap();
         assert_eq!(RunClocks::read(dir.path(), 200), Some(clocks.clone()));
         assert_eq!(RunClocks::read(dir.path(), 300), None);
         let mut resumed = PhaseTimer::new();
         resumed.add("solve", Duration::from_millis(500));
-        clocks.merge_into(&mut resumed);
+        assert_eq!(
+            RunClocks::resume(dir.path(), 200, &mut resumed),
+            Ok(clocks.clone())
+        );
+        assert_eq!(resumed.get("solve"), Duration::from_secs(2));
+        let next = clocks.then(300, 1.0, 0.5, &resumed);
+        assert_eq!(
+            (next.pieces, next.stepping_s, next.frames_s),
+            (2, 3.0, 0.75)
+        );
+        let note = RunClocks::resume(dir.path(), 300, &mut resumed).unwrap_err();
+        assert!(
+            note.contains(CLOCKS_FILE) && note.contains("step 300"),
+            "{note}"
+        );
         assert_eq!(resumed.get("solve"), Duration::from_secs(2));
     }
 

@@ -28,7 +28,7 @@ use super::scene::{DtSpec, TrackScene};
 use crate::dem::{MultiBodySolver, MultiState};
 use crate::output::{
     read_checkpoint, write_checkpoint, write_json, CsvSeries, Grid, PvdWriter, RunClocks,
-    CHECKPOINT_FILE, CLOCKS_FILE,
+    CHECKPOINT_FILE,
 };
 use crate::pack::Packing;
 use crate::post::track_sensors::QUANTITIES;
@@ -168,19 +168,11 @@ pub fn run(ctx: &RunContext, force: bool, resume: bool) -> Result<()> {
                     ),
                 ));
             }
-            match RunClocks::read(&ctx.out_dir, c.state.step) {
-                Some(clocks) => {
-                    clocks.merge_into(&mut timer);
-                    before = clocks;
-                }
-                None => {
+            match RunClocks::resume(&ctx.out_dir, c.state.step, &mut timer) {
+                Ok(clocks) => before = clocks,
+                Err(note) => {
                     clocks_known = false;
-                    say(format_args!(
-                        "ballast-qdem: note: {} has no wall times for step {}; the \
-                         summary's times cover this run only",
-                        ctx.out_dir.join(CLOCKS_FILE).display(),
-                        c.state.step
-                    ));
+                    say(format_args!("ballast-qdem: {note}"));
                 }
             }
             let clock = c.state.step as f64 * dt - settled;
@@ -244,9 +236,9 @@ pub fn run(ctx: &RunContext, force: bool, resume: bool) -> Result<()> {
                 },
             )?;
             out.frame_s += clock.elapsed().as_secs_f64();
-            let stepping = before.stepping_s + started.elapsed().as_secs_f64() - out.frame_s;
-            let frames = before.frames_s + out.frame_s;
-            RunClocks::at(state.step, before.pieces + 1, stepping, frames, &timer)
+            let stepping = started.elapsed().as_secs_f64() - out.frame_s;
+            before
+                .then(state.step, stepping, out.frame_s, &timer)
                 .write(&ctx.out_dir)?;
         }
         if state.step % 256 == 0 {
