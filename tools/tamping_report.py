@@ -154,12 +154,12 @@ def binary_hash(path):
         return hashlib.sha256(f.read()).hexdigest()
 
 
-def run_version(cmd, directory, nscd, resumable):
+def run_version(cmd, directory, binary_sha256, resumable):
     """Runs `cmd` (without --out) into `directory`. With `resumable`, a finished run
     of the same command and binary there is reused, and a killed one resumed from
     its checkpoint; anything else starts afresh."""
     stamp_path = os.path.join(directory, "bench-command.json")
-    stamp = {"command": cmd, "binary_sha256": binary_hash(nscd)}
+    stamp = {"command": cmd, "binary_sha256": binary_sha256}
     try:
         with open(stamp_path) as f:
             same = resumable and json.load(f) == stamp
@@ -196,6 +196,7 @@ def bench(nscd, preset, steps, out, repeat=1):
             dt = json.load(f)["figures"]["dt_s"]
     results = {}
     runs = {v: [] for v in VERSIONS}
+    nscd_sha256 = binary_hash(nscd)
     # The versions in turn, so that a slow spell of the machine hits them alike.
     for r in range(repeat):
         for version, (name, driver, threads, balanced) in VERSIONS.items():
@@ -208,7 +209,7 @@ def bench(nscd, preset, steps, out, repeat=1):
             print("tamping_report: run %d/%d:" % (r + 1, repeat), " ".join(cmd), "into", d,
                   file=sys.stderr, flush=True)
             try:
-                run_version(cmd, d, nscd, resumable=repeat == 1)
+                run_version(cmd, d, nscd_sha256, resumable=repeat == 1)
             finally:
                 if scene != SCENE:
                     os.remove(scene)

@@ -75,7 +75,9 @@ impl RunClocks {
     ) -> std::result::Result<Self, String> {
         match Self::read(dir, step) {
             Some(clocks) => {
-                clocks.merge_into(timer);
+                for (name, seconds) in &clocks.phases {
+                    timer.add(name, Duration::from_secs_f64(*seconds));
+                }
                 Ok(clocks)
             }
             None => Err(format!(
@@ -98,13 +100,6 @@ impl RunClocks {
         serde_json::from_str::<RunClocks>(&text)
             .ok()
             .filter(|c| c.step == step)
-    }
-
-    /// Adds the saved phases into `timer` (a resumed run's).
-    pub fn merge_into(&self, timer: &mut PhaseTimer) {
-        for (name, seconds) in &self.phases {
-            timer.add(name, Duration::from_secs_f64(*seconds));
-        }
     }
 }
 
