@@ -4,7 +4,9 @@
 # 2 cores, and it needs the table3 bed (`make pack-presets`); TAMPING_BENCH_STEPS=N runs
 # the first N of its 2 272 steps, TAMPING_BENCH_PRESET=quick the quick bed instead,
 # TAMPING_BENCH_REPEAT=R every version R times in turn (medians). With R = 1 a stopped
-# bench resumes: finished versions are reused, killed ones resumed (tools/tamping_report.py).
+# bench resumes: finished versions are reused, killed ones resumed, all with the binary
+# frozen when the bench first started; TAMPING_BENCH_FRESH=1 starts over with the current
+# build (tools/tamping_report.py).
 # Included by the main Makefile, which defines PY, RELEASE, RUST_SOURCES, VENV_STAMP and
 # PACK_QUICK (mk/pack.mk).
 
@@ -13,6 +15,7 @@ TAMPING_CHART := results/tamping_quick.png
 TAMPING_BENCH_PRESET ?= table3
 TAMPING_BENCH_STEPS ?= 2272
 TAMPING_BENCH_REPEAT ?= 1
+TAMPING_BENCH_FRESH ?= 0
 
 .PHONY: tamping bench-tamping
 bench: bench-tamping
@@ -26,7 +29,7 @@ $(TAMPING_CHART): tools/tamping_report.py $(TAMPING_QUICK) | $(VENV_STAMP)
 bench-tamping: results/bed-$(TAMPING_BENCH_PRESET)/summary.json meshes/tine.msh | $(RELEASE)/ballast-nscd $(VENV_STAMP)
 	$(PY) tools/tamping_report.py bench --nscd $(RELEASE)/ballast-nscd \
 	  --preset $(TAMPING_BENCH_PRESET) --steps $(TAMPING_BENCH_STEPS) \
-	  --repeat $(TAMPING_BENCH_REPEAT) \
+	  --repeat $(TAMPING_BENCH_REPEAT) --fresh $(TAMPING_BENCH_FRESH) \
 	  --out results/bench-tamping-$(TAMPING_BENCH_PRESET) \
 	  | tee results/bench-tamping-$(TAMPING_BENCH_PRESET).md
 

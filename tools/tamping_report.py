@@ -3,7 +3,7 @@
   tamping_report.py chart DIR OUT.png
       compactness per control box, tine travel and squeezing forces against time,
       from DIR/tamping.csv and DIR/summary.json, the phases shaded.
-  tamping_report.py bench --nscd BIN --preset P --steps N --out DIR [--repeat R]
+  tamping_report.py bench --nscd BIN --preset P --steps N --out DIR [--repeat R] [--fresh 1]
       runs scenes/tamping.toml --preset P for its first N steps in the three versions
       of the seed's Table 3 (1: no DDM, 1 thread; 2: synchronous DDM, 2 threads;
       3: asynchronous DDM, 2 threads), and a fourth beyond the seed's table (4: the
@@ -15,10 +15,14 @@
       2 %; the seed: 1.7 %). With --repeat R the versions run R times in turn and
       every wall time is the median of its R runs (the runs of one version give the
       same results, bit for bit). With one run per version the bench survives being
-      stopped: each version's directory keeps the command and a hash of the binary
-      it ran with, a finished version is reused and a killed one resumed from its
-      checkpoint (written every 100 steps) when both are unchanged; the summary's
-      wall times then add up the pieces (`pieces` says how many).
+      stopped: each version's directory keeps the command and the hashes of the
+      binary, the scene and the bed it ran with, a finished version is reused and a
+      killed one resumed from its checkpoint (written every 100 steps) when all are
+      unchanged; the summary's wall times then add up the pieces (`pieces` says how
+      many). Such a bench runs a copy of the binary frozen in DIR when it first
+      started (DIR/bench-binary.json says which commit), so that rebuilding the
+      project between pieces does not restart hours of runs; --fresh drops the copy
+      and every version and starts over with BIN.
   tamping_report.py ensemble --pack BIN --nscd BIN --seeds N --out DIR
       the asynchronous driver against the synchronous one over N quick beds (seeds 1
       to N of `ballast-pack --preset quick`): each bed is tamped with both drivers
@@ -38,9 +42,12 @@ import os
 import re
 import signal
 import statistics
+import shutil
 import subprocess
 import sys
 import tempfile
+import time
+import tomllib
 
 # Seed 000 Table 3 (minutes): version -> (cores, total, detection, NLGS, other).
 SEED_TABLE3 = {
@@ -149,17 +156,61 @@ def median_times(summaries):
     return {k: statistics.median(r[k] for r in runs) for k in runs[0]}
 
 
-def binary_hash(path):
+def file_hash(path):
     with open(path, "rb") as f:
         return hashlib.sha256(f.read()).hexdigest()
 
 
-def run_version(cmd, directory, binary_sha256, resumable):
+def frozen_binary(nscd, out, fresh):
+    """The binary a resumable bench runs: a copy of `nscd` taken into `out` when the
+    bench first starts, and used by every later piece while its hash holds, so that a
+    rebuild between pieces does not restart runs of hours. Returns (path, sha256,
+    note). With `fresh` the copy and every version under `out` are dropped first."""
+    copy = os.path.join(out, "ballast-nscd.frozen")
+    stamp_path = os.path.join(out, "bench-binary.json")
+    if fresh:
+        for entry in os.listdir(out):
+            path = os.path.join(out, entry)
+            if entry.startswith("version-"):
+                shutil.rmtree(path)
+            elif entry in ("ballast-nscd.frozen", "bench-binary.json"):
+                os.remove(path)
+    try:
+        with open(stamp_path) as f:
+            stamp = json.load(f)
+        if file_hash(copy) == stamp["binary_sha256"]:
+            return copy, stamp["binary_sha256"], (
+                "running the binary frozen %s from commit %s (--fresh to start over with %s)"
+                % (stamp["frozen_utc"], stamp["commit"], nscd))
+    except (OSError, ValueError, KeyError):
+        pass
+    shutil.copy2(nscd, copy)
+    git = lambda *a: subprocess.run(["git", *a], capture_output=True, text=True).stdout.strip()
+    commit = git("rev-parse", "--short", "HEAD") or "unknown"
+    if git("status", "--porcelain", "--", "src", "Cargo.toml", "Cargo.lock"):
+        commit += " with uncommitted changes to src/ or Cargo"
+    stamp = {"binary_sha256": file_hash(copy), "commit": commit,
+             "frozen_utc": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())}
+    with open(stamp_path, "w") as f:
+        json.dump(stamp, f, indent=1)
+    return copy, stamp["binary_sha256"], "froze %s (commit %s) as %s" % (nscd, commit, copy)
+
+
+def packing_file(scene, preset):
+    """The packing file that `scene` under `preset` reads (for the bench's input hash)."""
+    with open(scene, "rb") as f:
+        table = tomllib.load(f)
+    path = table.get("preset", {}).get(preset, {}).get("packing", {}).get(
+        "file", table["packing"]["file"])
+    return os.path.join(os.path.dirname(scene), path)
+
+
+def run_version(cmd, directory, inputs, resumable):
     """Runs `cmd` (without --out) into `directory`. With `resumable`, a finished run
-    of the same command and binary there is reused, and a killed one resumed from
-    its checkpoint; anything else starts afresh."""
+    of the same command and inputs (hashes of the binary, scene and bed) there is
+    reused, and a killed one resumed from its checkpoint; anything else starts afresh."""
     stamp_path = os.path.join(directory, "bench-command.json")
-    stamp = {"command": cmd, "binary_sha256": binary_sha256}
+    stamp = dict(command=cmd, **inputs)
     try:
         with open(stamp_path) as f:
             same = resumable and json.load(f) == stamp
@@ -182,10 +233,21 @@ def run_version(cmd, directory, binary_sha256, resumable):
     subprocess.run(cmd + ["--out", directory], check=True, stdout=subprocess.DEVNULL)
 
 
-def bench(nscd, preset, steps, out, repeat=1):
+def bench(nscd, preset, steps, out, repeat=1, fresh=False):
     # A stopped bench (SIGTERM) still removes its scene copy and leaves its runs to resume.
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
     os.makedirs(out, exist_ok=True)
+    results = {}
+    runs = {v: [] for v in VERSIONS}
+    resumable = repeat == 1
+    if resumable:
+        nscd, nscd_sha256, note = frozen_binary(nscd, out, fresh)
+        print("tamping_report:", note, file=sys.stderr, flush=True)
+    else:
+        nscd_sha256 = file_hash(nscd)
+        note = "running %s (sha256 %s…)" % (nscd, nscd_sha256[:12])
+    inputs = {"binary_sha256": nscd_sha256, "scene_sha256": file_hash(SCENE),
+              "bed_sha256": file_hash(packing_file(SCENE, preset))}
     # The preset's step, from the summary of a one-step run (the same for every version).
     with tempfile.TemporaryDirectory() as probe:
         subprocess.run([nscd, SCENE, "--preset", preset, "--out", probe,
@@ -194,9 +256,6 @@ def bench(nscd, preset, steps, out, repeat=1):
                        check=True, stdout=subprocess.DEVNULL)
         with open(os.path.join(probe, "summary.json")) as f:
             dt = json.load(f)["figures"]["dt_s"]
-    results = {}
-    runs = {v: [] for v in VERSIONS}
-    nscd_sha256 = binary_hash(nscd)
     # The versions in turn, so that a slow spell of the machine hits them alike.
     for r in range(repeat):
         for version, (name, driver, threads, balanced) in VERSIONS.items():
@@ -209,7 +268,7 @@ def bench(nscd, preset, steps, out, repeat=1):
             print("tamping_report: run %d/%d:" % (r + 1, repeat), " ".join(cmd), "into", d,
                   file=sys.stderr, flush=True)
             try:
-                run_version(cmd, d, nscd_sha256, resumable=repeat == 1)
+                run_version(cmd, d, inputs, resumable)
             finally:
                 if scene != SCENE:
                     os.remove(scene)
@@ -220,6 +279,7 @@ def bench(nscd, preset, steps, out, repeat=1):
     ref = times[1]
     print("\n## Table 3 layout: %s preset, %d steps (minutes, %s; seed's in brackets)\n"
           % (preset, steps, "one run" if repeat == 1 else "medians of %d runs" % repeat))
+    print("tamping_report: %s\n" % note)
     print("| | " + " | ".join("version %d: %s" % (v, VERSIONS[v][0]) for v in VERSIONS) + " |")
     print("|---|" + "---|" * len(VERSIONS))
     rows = [("cores", None), ("total", "total"), ("contact detection", "detect"),
@@ -333,7 +393,8 @@ def main(argv):
     if argv and argv[0] == "bench":
         opts = dict(zip(argv[1::2], argv[2::2]))
         bench(opts["--nscd"], opts.get("--preset", "table3"), int(opts.get("--steps", "2272")),
-              opts.get("--out", "results/bench-tamping"), int(opts.get("--repeat", "1")))
+              opts.get("--out", "results/bench-tamping"), int(opts.get("--repeat", "1")),
+              opts.get("--fresh", "0") == "1")
         return 0
     if argv and argv[0] == "ensemble":
         opts = dict(zip(argv[1::2], argv[2::2]))
