@@ -2,14 +2,14 @@
 # train loads. `make track` packs the quick bed (ballast-pack impact-quick), writes a
 # train load (ballast-post train-load: the first bogie of one car at 115 km/h), runs the
 # quick track scene and draws its spectra and histories (ballast-post spectra). The
-# default `make` ends with it. Included by the main Makefile (RELEASE, STONE_MESHES).
+# default `make` ends with it. Included by the main Makefile (RELEASE, STONE_MESHES), after
+# mk/track-load.mk (TRACK_LOAD, TRACK_PAPER_LOAD).
 
 TRACK_BED := results/bed-impact-quick/packing.toml
 # The Type-3 sleeper meshed at 25 mm for the quick bed: its 24 mm contact spheres then
 # cover its faces (at the 5 cm of meshes/sleeper_type3.msh a stone's sphere passes
 # between them; seed 004's mesh has 10 mm edges).
 TRACK_SLEEPER := meshes/sleeper_type3_h0.025.msh
-TRACK_LOAD := results/train-load-quick/train_load.csv
 TRACK_QUICK := results/track_impact-quick/summary.json
 TRACK_SPECTRA := results/track_impact_quick.json
 
@@ -19,10 +19,6 @@ meshes/sleeper_type3_h%.msh: geo/sleeper_type3.geo | $(VENV_STAMP)
 	$(GMSH_H)
 $(TRACK_BED): scenes/bed.toml $(STONE_MESHES) $(TRACK_SLEEPER) | $(RELEASE)/ballast-pack
 	$(RELEASE)/ballast-pack $< --preset impact-quick --out $(@D)
-# One car's leading bogie: the first axle 1.885 m (3π/4 L, a zero of the influence
-# line) before the sleeper, 0.2 s of record.
-$(TRACK_LOAD): mk/track.mk | $(RELEASE)/ballast-post
-	$(RELEASE)/ballast-post train-load --out $@ --cars 1 --lead-in-m 1.885 --duration-s 0.2
 $(TRACK_QUICK): scenes/track_impact.toml $(TRACK_BED) $(TRACK_LOAD) $(RUST_SOURCES) | $(RELEASE)/ballast-qdem
 	$(RELEASE)/ballast-qdem $< --preset quick --out $(@D)
 $(TRACK_SPECTRA): $(TRACK_QUICK) | $(RELEASE)/ballast-post
@@ -51,14 +47,8 @@ $(TRACK_STUDY)/friction.md: $(TRACK_MU:%=$(TRACK_STUDY)/mu-%/summary.json) | $(R
 $(TRACK_STUDY)/stones.md: $(TRACK_STONES:%=$(TRACK_STUDY)/stones-%/summary.json) | $(RELEASE)/ballast-post
 	$(RELEASE)/ballast-post track-compare $(TRACK_STONES:%=$(TRACK_STUDY)/stones-%) --out $(@:.md=)
 
-## The paper preset's load: the whole train of `ballast-post train-load`'s defaults
-## (five cars at 115 km/h; the last axle is 8 m past the sleeper at 3.39 s), recorded
-## to the scene's 3.5 s (seed 004 Fig. 5's record).
-TRACK_PAPER_LOAD := results/train-load/train_load.csv
 # The paper preset's bed (its scene reads this file): `make results/bed-impact/summary.json`.
 TRACK_PAPER_BED := results/bed-impact/packing.toml
-$(TRACK_PAPER_LOAD): mk/track.mk | $(RELEASE)/ballast-post
-	$(RELEASE)/ballast-post train-load --out $@ --duration-s 3.5
 
 ## The first bogie (the quick load, 0.2 s) on the paper bed (`make track-paper-bogie`):
 ## seed 004's bed and time step (≈ 0.1 µs) with rigid stones, ≈ 2 M steps, hours on 2
@@ -87,6 +77,19 @@ $(TRACK_PAPER): scenes/track_impact.toml $(TRACK_PAPER_BED) $(TRACK_PAPER_LOAD) 
 	$(call resume_or_run,$(@D),$(RELEASE)/ballast-qdem $< --preset paper --threads $(TRACK_PAPER_THREADS))
 results/track_impact_paper.json: $(TRACK_PAPER) | $(RELEASE)/ballast-post
 	$(RELEASE)/ballast-post spectra $(dir $<)sensors.csv --load $(TRACK_PAPER_LOAD) --out $(@:.json=)
+
+## The paper preset at seed 004's other friction (`make track-paper-mu`): the same five
+## cars with µ = 1.73 on every contact (seed 004 §4.1, Figure 8's dashed lines), a run
+## of hours like `make track-paper` and resumable the same way; then the two runs side
+## by side (results/track_impact_paper_friction.md: settlement, lateral motion).
+TRACK_PAPER_MU := results/track_impact-paper-mu1.73/summary.json
+.PHONY: track-paper-mu
+track-paper-mu: results/track_impact_paper_friction.md
+$(TRACK_PAPER_MU): scenes/track_impact.toml $(TRACK_PAPER_BED) $(TRACK_PAPER_LOAD) | $(RELEASE)/ballast-qdem
+	$(call resume_or_run,$(@D),$(RELEASE)/ballast-qdem $< --preset paper --threads $(TRACK_PAPER_THREADS) \
+	  --set friction.ballast_ballast=1.73 --set friction.ballast_sleeper=1.73 --set friction.base=1.73)
+results/track_impact_paper_friction.md: $(TRACK_PAPER) $(TRACK_PAPER_MU) | $(RELEASE)/ballast-post
+	$(RELEASE)/ballast-post track-compare $(^D) --out $(@:.md=)
 
 ## Throughput of the track scene (part of `make bench`): 20 ms of the quick preset on 1
 ## and 2 threads (the files must agree: spectrum difference 0), with peak memory.
