@@ -352,7 +352,8 @@ impl MoreauJean {
                     .zip(&self.impulses)
                     .map(|(c, r)| (c.key, r)),
             );
-            self.carried.extend(missed.iter().map(|(c, cap)| (c.key, *cap)));
+            self.carried
+                .extend(missed.iter().map(|(c, cap)| (c.key, *cap)));
             self.points.extend(missed.into_iter().map(|(c, _)| c));
             self.order_points(bodies);
         };
@@ -644,8 +645,7 @@ impl MoreauJean {
                 // normal is no gap when the features do not face each other there).
                 let carried = ContactPoint { point, normal, ..c };
                 let arms = lever_arms(&carried, bodies);
-                let v_start =
-                    relative_velocity(&arms, [a, b], start_velocity, start_angular);
+                let v_start = relative_velocity(&arms, [a, b], start_velocity, start_angular);
                 let v_end = relative_velocity(&arms, [a, b], &self.velocity, &self.angular);
                 let (u_start, u_end) = (normal.dot(&v_start), normal.dot(&v_end));
                 let step_speed = ((1.0 - theta) * v_start + theta * v_end).norm();
