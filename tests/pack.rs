@@ -118,6 +118,8 @@ fn packing_and_vtk_files_read_back() {
     assert_eq!(packing.sleepers.len(), 2);
     assert_eq!(packing.seed, 1);
     assert_eq!(packing.d50_m, figure(&f, "d50_m"));
+    // The packing says whether its build settled, as the summary does.
+    assert_eq!(packing.settled, f["settled"].as_bool());
     for m in &packing.meshes {
         assert!(
             m.file.exists(),

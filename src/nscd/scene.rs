@@ -1175,6 +1175,9 @@ impl NscdScene {
         if let Some(p) = &self.packing {
             let file = Self::resolve(scene_path, &p.file);
             let packing = crate::pack::Packing::read(&file)?;
+            if let Some(note) = packing.unsettled_note("ballast-nscd", &file) {
+                eprintln!("{note}");
+            }
             period = packing.period();
             let stuff = |name: &str| super::packed::Stuff {
                 material: self.material_index(name),

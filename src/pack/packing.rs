@@ -14,6 +14,7 @@
 //! container_max = [1.8, 0.6, 0.9]
 //! sides = "walls"          # or "periodic": periodic along x (the track), walls in y
 //! crib_top_m = 0.3         # the crib ballast's surface (optional)
+//! settled = true           # whether every build phase settled (optional)
 //! contacts = "contacts.csv" # the last step's contact impulses (optional; relative to
 //!                           # the packing file; crate::pack::contacts)
 //!
@@ -128,6 +129,12 @@ pub struct Packing {
     /// Level of the crib ballast's struck-off surface (m); absent in older files.
     #[serde(default)]
     pub crib_top_m: Option<f64>,
+    /// Whether every phase of the build passed its settle test (ballast-pack's
+    /// `summary.json` `settled`); absent in older files. A bed written NOT SETTLED (a
+    /// phase stopped at its time cap) is still a bed, but the solvers that read it say
+    /// that it does not start at rest ([`Packing::unsettled_note`]).
+    #[serde(default)]
+    pub settled: Option<bool>,
     /// The contact impulses of the packing's last step (a CSV, relative to the packing
     /// file when read; [`super::contacts`]), from which a restart starts warm.
     #[serde(default)]
@@ -166,6 +173,9 @@ impl Packing {
         if let Some(top) = self.crib_top_m {
             let _ = writeln!(out, "crib_top_m = {top:?}");
         }
+        if let Some(settled) = self.settled {
+            let _ = writeln!(out, "settled = {settled}");
+        }
         if let Some(contacts) = &self.contacts {
             let _ = writeln!(out, "contacts = {}", quoted(contacts));
         }
@@ -202,6 +212,19 @@ impl Packing {
     /// Writes the packing atomically.
     pub fn write(&self, path: &Path) -> Result<()> {
         crate::output::write_atomic(path, self.to_toml().as_bytes())
+    }
+
+    /// A one-line note for a solver (`tool`) reading the packing at `path` when the
+    /// packing says it did not settle (`settled = false`); `None` otherwise.
+    pub fn unsettled_note(&self, tool: &str, path: &Path) -> Option<String> {
+        (self.settled == Some(false)).then(|| {
+            format!(
+                "{tool}: note: {} was written NOT SETTLED (a build phase stopped at its \
+                 time cap; its summary.json gives the phases and the deepest overlap): \
+                 the bed does not start at rest",
+                path.display()
+            )
+        })
     }
 
     /// The periodicity of a `"periodic"` packing: along x over the container's length.
@@ -312,6 +335,7 @@ mod tests {
             container_max: [1.0, 0.5, 1.0 / 3.0],
             sides: "walls".into(),
             crib_top_m: Some(0.25),
+            settled: Some(false),
             contacts: Some("contacts.csv".into()),
             meshes: vec![
                 PackedMesh {
@@ -348,6 +372,17 @@ mod tests {
         let back = Packing::parse(Path::new("p.toml"), &text).unwrap();
         assert_eq!(back, packing);
         assert_eq!(back.to_toml(), text);
+    }
+
+    #[test]
+    fn an_unsettled_packing_gets_a_note_naming_its_file() {
+        let mut packing = sample();
+        let note = packing.unsettled_note("tool", Path::new("beds/p.toml"));
+        assert!(note.is_some_and(|n| n.starts_with("tool: note: beds/p.toml")));
+        for settled in [Some(true), None] {
+            packing.settled = settled;
+            assert_eq!(packing.unsettled_note("tool", Path::new("p.toml")), None);
+        }
     }
 
     #[test]

@@ -553,6 +553,7 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
         &ctx.out_dir,
     )?;
     packing.crib_top_m = Some(crib_top);
+    packing.settled = Some(bed.phases.iter().all(|p| p.settled));
     // The last step's impulses at the final configuration, for a warm restart.
     let contacts = packed_contacts(&final_contacts, bed.last_contacts(), &body_refs(&bed.roles));
     write_atomic(
@@ -788,6 +789,7 @@ fn packing_of(
         container_max: [bed.setup.length, 0.5 * bed.setup.width, top],
         sides: scene.bed.sides.clone(),
         crib_top_m: None,
+        settled: None,
         contacts: None,
         meshes,
         stones,

@@ -62,6 +62,9 @@ pub fn run(ctx: &RunContext, force: bool, resume: bool) -> Result<()> {
     };
     let packing_path = TrackScene::resolve(&ctx.scene_path, &scene.track.packing);
     let packing = Packing::read(&packing_path)?;
+    if let Some(note) = packing.unsettled_note("ballast-qdem", &packing_path) {
+        println!("{note}");
+    }
     let loads = match &scene.track.loads {
         Some(file) => {
             let path = TrackScene::resolve(&ctx.scene_path, file);
