@@ -202,6 +202,48 @@ fn the_bed_settles_less_under_higher_friction() {
         s_low < 0.0 && s_low < 2.0 * s_high,
         "settlement µ = 0.577: {s_low} m, µ = 1.73: {s_high} m"
     );
+    // `ballast-post track-compare` puts the two side by side: each run's settlement as
+    // its summary has it, the reference's own spectrum difference 0, the two frictions,
+    // and the charts.
+    let prefix = dir.join("friction");
+    ok(
+        Command::new(POST)
+            .arg("track-compare")
+            .arg(quick())
+            .arg(&dir)
+            .arg("--out")
+            .arg(&prefix)
+            .output()
+            .unwrap(),
+        "ballast-post track-compare",
+    );
+    let text = std::fs::read_to_string(prefix.with_extension("json")).unwrap();
+    let json: Value = serde_json::from_str(&text).unwrap();
+    let runs = json["runs"].as_array().unwrap();
+    assert_eq!(runs.len(), 2, "{json}");
+    for (run, (mu, settlement)) in runs.iter().zip([(0.577, s_low), (1.73, s_high)]) {
+        assert_eq!(run["friction"].as_f64(), Some(mu), "{run}");
+        assert_eq!(
+            run["sleeper_settlement_m"].as_f64(),
+            Some(settlement),
+            "{run}"
+        );
+    }
+    assert_eq!(runs[0]["spectrum_difference"].as_f64(), Some(0.0), "{json}");
+    assert!(
+        runs[1]["spectrum_difference"].as_f64().unwrap() > 0.0,
+        "{json}"
+    );
+    for suffix in [".md", ".svg", ".png", "_histories.svg", "_histories.png"] {
+        let file = PathBuf::from(format!("{}{suffix}", prefix.display()));
+        assert!(
+            std::fs::metadata(&file)
+                .map(|m| m.len() > 0)
+                .unwrap_or(false),
+            "{}",
+            file.display()
+        );
+    }
 }
 
 /// The VTK series read back with VTK: the deformable sleeper's tetra with its fields,

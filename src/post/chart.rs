@@ -83,6 +83,23 @@ fn render<DB: DrawingBackend>(
     root.present().map_err(to_line)
 }
 
+/// Panels stacked top to bottom, each drawn by [`line_panel`] in an equal share of the
+/// height.
+pub(crate) struct Stacked<'a>(pub Vec<LinePanel<'a>>);
+
+impl Figure for Stacked<'_> {
+    fn draw<DB: DrawingBackend>(
+        &self,
+        root: &DrawingArea<DB, Shift>,
+    ) -> std::result::Result<(), String> {
+        let areas = root.split_evenly((self.0.len(), 1));
+        for (area, panel) in areas.iter().zip(&self.0) {
+            line_panel(area, panel)?;
+        }
+        Ok(())
+    }
+}
+
 /// One panel of [`line_panel`]: labelled lines on linear axes. A panel whose y values
 /// are log10 of the data says so with `log10_y`, and its tick labels show 10^y.
 pub(crate) struct LinePanel<'a> {

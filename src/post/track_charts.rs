@@ -7,7 +7,7 @@ use plotters::prelude::{DrawingArea, DrawingBackend};
 
 use std::path::{Path, PathBuf};
 
-use super::chart::{line_panel, write_svg_png, Figure, LinePanel};
+use super::chart::{line_panel, write_svg_png, Figure, LinePanel, Stacked};
 use super::track_sensors::{Sensor, SensorRecord};
 use super::track_spectra::TrackSpectra;
 use crate::Result;
@@ -114,7 +114,7 @@ struct HistoriesChart<'a> {
 
 /// At most ~2 × `buckets` points of a long history: the minimum and the maximum of each
 /// bucket, in time order, so spikes stay visible in the chart.
-fn decimate(t: &[f64], v: &[f64], scale: f64, buckets: usize) -> Vec<(f64, f64)> {
+pub(crate) fn decimate(t: &[f64], v: &[f64], scale: f64, buckets: usize) -> Vec<(f64, f64)> {
     let size = t.len().div_ceil(buckets).max(1);
     let mut out = Vec::with_capacity(2 * buckets + 2);
     for start in (0..t.len()).step_by(size) {
@@ -202,11 +202,6 @@ impl Figure for HistoriesChart<'_> {
         &self,
         root: &DrawingArea<DB, Shift>,
     ) -> std::result::Result<(), String> {
-        let panels = self.panels();
-        let areas = root.split_evenly((panels.len(), 1));
-        for (area, panel) in areas.iter().zip(&panels) {
-            line_panel(area, panel)?;
-        }
-        Ok(())
+        Stacked(self.panels()).draw(root)
     }
 }

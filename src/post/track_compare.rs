@@ -12,7 +12,9 @@
 //!   (B*: mean final vertical displacement, and their largest lateral one).
 //!
 //! Reads each directory's `summary.json` and `sensors.csv` (as `ballast-qdem` writes
-//! them); writes `PREFIX.md` (the table), `PREFIX.json` and the chart `PREFIX.svg/.png`.
+//! them); writes `PREFIX.md` (the table), `PREFIX.json`, the chart `PREFIX.svg/.png`
+//! and the runs' displacement histories on one chart, `PREFIX_histories.svg/.png`
+//! (seed 004 Figure 8 with every run on it).
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -20,7 +22,8 @@ use std::path::{Path, PathBuf};
 use plotters::prelude::*;
 use serde_json::{json, Value};
 
-use super::chart::{write_svg_png, Figure, PALETTE};
+use super::chart::{write_svg_png, Figure, LinePanel, Stacked, PALETTE};
+use super::track_charts::decimate;
 use super::track_sensors::read_sensors;
 use super::track_spectra::{smoothed_spectrum, with_suffix};
 use crate::{Error, Result};
@@ -274,7 +277,8 @@ pub fn table(runs: &[ComparedRun], reference: &Path, options: &CompareOptions) -
     s
 }
 
-/// Writes `PREFIX.md`, `PREFIX.json` and the chart `PREFIX.svg/.png`; returns the paths.
+/// Writes `PREFIX.md`, `PREFIX.json`, the chart `PREFIX.svg/.png` and the histories
+/// `PREFIX_histories.svg/.png`; returns the paths.
 pub fn write_report(
     runs: &[ComparedRun],
     reference: &Path,
@@ -314,7 +318,68 @@ pub fn write_report(
         &with_suffix(prefix, ".svg"),
         (1000, 700),
     )?);
+    let panels = history_panels(runs, options)?;
+    let height = 330 * panels.len() as u32;
+    paths.extend(write_svg_png(
+        &Stacked(panels),
+        &with_suffix(prefix, "_histories.svg"),
+        (1100, height),
+    )?);
     Ok(paths)
+}
+
+/// The runs' displacement histories, a line per run and sensor: the compared sensor's
+/// vertical displacement (the sleeper's settlement, at S2 by default), then the stone
+/// sensors' (B*) vertical and lateral ones (seed 004 Figure 8b and 8a), in mm.
+fn history_panels(
+    runs: &[ComparedRun],
+    options: &CompareOptions,
+) -> Result<Vec<LinePanel<'static>>> {
+    let (mut sleeper, mut vertical, mut lateral) = (Vec::new(), Vec::new(), Vec::new());
+    for r in runs {
+        let record = read_sensors(&r.dir.join("sensors.csv"))?;
+        let t = &record.time_s;
+        for s in &record.sensors {
+            let name = format!("{}: {}", r.label, s.name);
+            let line = |axis: usize| decimate(t, &s.displacement_m[axis], 1e3, 1500);
+            if s.name == options.sensor {
+                sleeper.push((name.clone(), line(2)));
+            }
+            if s.name.starts_with('B') {
+                vertical.push((name.clone(), line(2)));
+                lateral.push((name, line(1)));
+            }
+        }
+    }
+    let panel = |title: String, y_desc: &'static str, series| LinePanel {
+        title,
+        x_desc: "time (s)",
+        y_desc,
+        log10_y: false,
+        series,
+        shade_x: None,
+    };
+    let mut panels = vec![panel(
+        format!(
+            "{} vertical displacement (settlement negative)",
+            options.sensor
+        ),
+        "uz (mm)",
+        sleeper,
+    )];
+    if !vertical.is_empty() {
+        panels.push(panel(
+            "stone sensors' vertical displacement".into(),
+            "uz (mm)",
+            vertical,
+        ));
+        panels.push(panel(
+            "stone sensors' lateral displacement".into(),
+            "uy (mm)",
+            lateral,
+        ));
+    }
+    Ok(panels)
 }
 
 struct CompareChart<'a>(&'a [ComparedRun]);
