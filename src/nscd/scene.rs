@@ -1176,7 +1176,7 @@ impl NscdScene {
             let file = Self::resolve(scene_path, &p.file);
             let packing = crate::pack::Packing::read(&file)?;
             if let Some(note) = packing.unsettled_note("ballast-nscd", &file) {
-                eprintln!("{note}");
+                println!("{note}");
             }
             period = packing.period();
             let stuff = |name: &str| super::packed::Stuff {

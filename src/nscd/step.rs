@@ -27,7 +27,7 @@
 //! closed contact get `ũ_n = u_n^{i+1} + max(g*/(θh), −v_dep)`, which pushes an
 //! overlap out at most at that speed.
 
-use std::collections::{HashMap, HashSet};
+use std::collections::HashSet;
 use std::time::{Duration, Instant};
 
 use nalgebra::{Isometry3, Matrix3, Translation3, UnitQuaternion, Vector3};
@@ -186,9 +186,8 @@ pub struct MoreauJean {
     inverse_mass: Vec<f64>,
     inverse_inertia: Vec<Matrix3<f64>>,
     solved: Vec<SolvedContact>,
-    /// The contacts this step's end-of-step checks added, each with the largest speed
-    /// at which the step may push it out (see [`Self::missed_contacts`]).
-    carried: HashMap<ContactKey, f64>,
+    /// The keys of the contacts this step's end-of-step checks added.
+    carried: HashSet<ContactKey>,
 }
 
 impl MoreauJean {
@@ -210,7 +209,7 @@ impl MoreauJean {
             inverse_mass: Vec::new(),
             inverse_inertia: Vec::new(),
             solved: Vec::new(),
-            carried: HashMap::new(),
+            carried: HashSet::new(),
         }
     }
 
@@ -352,9 +351,8 @@ impl MoreauJean {
                     .zip(&self.impulses)
                     .map(|(c, r)| (c.key, r)),
             );
-            self.carried
-                .extend(missed.iter().map(|(c, cap)| (c.key, *cap)));
-            self.points.extend(missed.into_iter().map(|(c, _)| c));
+            self.carried.extend(missed.iter().map(|c| c.key));
+            self.points.extend(missed);
             self.order_points(bodies);
         };
 
@@ -402,7 +400,7 @@ impl MoreauJean {
             }
             // A contact carried back by an end-of-step check has a linearised gap,
             // not a distance at the start: the start's overlaps are the detected ones.
-            if !self.carried.contains_key(&c.key) {
+            if !self.carried.contains(&c.key) {
                 max_pen = max_pen.max(-c.gap);
                 if r[0] > 0.0 {
                     pen_sum += (-c.gap).max(0.0);
@@ -549,16 +547,13 @@ impl MoreauJean {
             let predicted = c.gap + dt * (1.0 - theta) * u_start;
             // Open: may close but not cross. Closed (predicted ≤ 0): u_n ≥ 0, or with a
             // depenetration speed u_n ≥ min(−g*/(θh), that speed). A contact carried
-            // back by an end-of-step check is pushed out faster, at up to the speed at
-            // which its features moved into each other over the step: an overlap the
-            // step's own motion made (features swung through each other) is undone in
-            // the step, and one that was there before the step is not turned into a
-            // kick.
-            let cap = match self.carried.get(&c.key) {
-                Some(&cap) => cap,
-                None => self.params.depenetration_speed,
+            // back by an end-of-step check is not capped: its overlap is the step's own
+            // (features swung through each other), so the step must end without it.
+            let shift = if self.carried.contains(&c.key) {
+                predicted / (theta * dt)
+            } else {
+                (predicted / (theta * dt)).max(-self.params.depenetration_speed)
             };
-            let shift = (predicted / (theta * dt)).max(-cap);
             self.rows.push(ContactRow {
                 bodies: [c.key.body_a, c.key.body_b],
                 frame,
@@ -582,21 +577,13 @@ impl MoreauJean {
     /// the law, linearised about that motion, keeps the features from crossing). Only
     /// pairs with a moving body are detected, and only overlaps count (no alert
     /// distance, no reach).
-    ///
-    /// Each comes with the largest speed at which the new solve may push it out: the
-    /// speed of its two points relative to each other over the step (θ-weighted), plus
-    /// the depenetration speed. That is all the step's own motion can have carried
-    /// the features into each other. A deeper overlap was there before the step (a
-    /// pair the detection at the start did not report): pushed out within the step it
-    /// would leave at up to depth ÷ h, a metre per second for 2 mm at h = 2 ms, and a
-    /// settling bed fed such kicks every step blew up (docs/pack.md, "Final settle").
     fn missed_contacts(
         &mut self,
         bodies: &[Body],
         poses: &[Isometry3<f64>],
         start_velocity: &[Vector3<f64>],
         start_angular: &[Vector3<f64>],
-    ) -> Vec<(ContactPoint, f64)> {
+    ) -> Vec<ContactPoint> {
         let StepParams { dt, theta, .. } = self.params;
         let ends: Vec<Isometry3<f64>> = bodies
             .iter()
@@ -645,15 +632,13 @@ impl MoreauJean {
                 // normal is no gap when the features do not face each other there).
                 let carried = ContactPoint { point, normal, ..c };
                 let arms = lever_arms(&carried, bodies);
-                let v_start = relative_velocity(&arms, [a, b], start_velocity, start_angular);
-                let v_end = relative_velocity(&arms, [a, b], &self.velocity, &self.angular);
-                let (u_start, u_end) = (normal.dot(&v_start), normal.dot(&v_end));
-                let step_speed = ((1.0 - theta) * v_start + theta * v_end).norm();
-                let point = ContactPoint {
+                let u_start =
+                    normal_velocity(&normal, &arms, [a, b], start_velocity, start_angular);
+                let u_end = normal_velocity(&normal, &arms, [a, b], &self.velocity, &self.angular);
+                ContactPoint {
                     gap: c.gap - dt * ((1.0 - theta) * u_start + theta * u_end),
                     ..carried
-                };
-                (point, step_speed + self.params.depenetration_speed)
+                }
             })
             .collect()
     }
@@ -674,21 +659,11 @@ fn lever_arms(c: &ContactPoint, bodies: &[Body]) -> [Vector3<f64>; 2] {
 fn normal_velocity(
     normal: &Vector3<f64>,
     arms: &[Vector3<f64>; 2],
-    bodies: [usize; 2],
-    v: &[Vector3<f64>],
-    w: &[Vector3<f64>],
-) -> f64 {
-    normal.dot(&relative_velocity(arms, bodies, v, w))
-}
-
-/// The velocity of body b's point relative to body a's (see [`normal_velocity`]).
-fn relative_velocity(
-    arms: &[Vector3<f64>; 2],
     [a, b]: [usize; 2],
     v: &[Vector3<f64>],
     w: &[Vector3<f64>],
-) -> Vector3<f64> {
-    v[b] + w[b].cross(&arms[1]) - (v[a] + w[a].cross(&arms[0]))
+) -> f64 {
+    normal.dot(&(v[b] + w[b].cross(&arms[1]) - (v[a] + w[a].cross(&arms[0]))))
 }
 
 /// The free angular velocity (body frame) after `dt` without torques: explicit
