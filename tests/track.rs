@@ -115,9 +115,11 @@ fn the_quick_track_runs_and_its_sensors_see_the_axle() {
     assert_eq!(figure(&f, "rigid_stones") as usize, stones);
     assert!(figure(&f, "dt_s") <= figure(&f, "stable_dt_s"));
     // Energy: Verlet with trapezoidal work conserves to O(dt²); the slider and
-    // dashpot terms are exact per step. 1 % of the energy scale is far above the
-    // 1e-4 measured and far below what a sign error or a missed term gives.
-    assert!(figure(&f, "energy_balance_relative") < 1e-2, "{f}");
+    // dashpot terms are exact per step. Measured 2.6e-4 of the energy scale (2.8e-3
+    // while the slider was counted as µ f_n times the slip, which missed what a spring
+    // at the cone's edge lets go when the normal force falls); 2e-3 leaves 8 × room
+    // and fails with that estimate, a sign error or a missed term.
+    assert!(figure(&f, "energy_balance_relative") < 2e-3, "{f}");
     // Springs of ~2 GN/m under at most the 2 × 35 kN of one axle: overlaps of µm, far
     // below 0.1 % of the stones' size (the packing's own criterion).
     assert!(

@@ -91,9 +91,13 @@ impl ContactLaw {
         let mut slip = 0.0;
         if ft_len > limit {
             let keep = if ft_len > 0.0 { limit / ft_len } else { 0.0 };
-            // Energy the slider takes: the spring released, at the force it holds.
-            slip = limit * norm(s) * (1.0 - keep);
-            s = scale(s, keep);
+            let kept = scale(s, keep);
+            // Energy the slider takes: the slip s − s' times the mean of the spring's
+            // force at the step's start (t) and end (s'), ½ k_t (t + s')·(s − s'); the
+            // work the integrator's trapezoid does on the spring is ½ k_t (t + s')·(s − t),
+            // of which ½ k_t (|s'|² − |t|²) stays in it.
+            slip = 0.5 * self.tangential_stiffness * dot(add(t, kept), sub(s, kept));
+            s = kept;
             ft = scale(ft, keep);
         }
         *xi = s;
@@ -116,7 +120,8 @@ pub struct PairForce {
     pub normal: f64,
     /// ½ k_n δ² + ½ k_t |ξ|² (J).
     pub spring_energy: f64,
-    /// Energy taken by the Coulomb slider this step (J).
+    /// Energy taken by the Coulomb slider this step (J): ½ k_t (t + s')·(s − s') with t
+    /// the carried spring, s the trial one and s' the one kept on the cone.
     pub slip_dissipated: f64,
     /// Energy taken by the dashpot this step (J).
     pub damping_dissipated: f64,
@@ -200,6 +205,51 @@ mod tests {
         let f = law.force(n, -1e-6, [0.0; 3], &mut xi, 1.0, 1e-6);
         assert_eq!(f.normal, 0.0);
         assert!(f.force.iter().all(|c| c.abs() < 1e-12));
+    }
+
+    /// With the normal fixed, the work the integrator's trapezoid does on the tangential
+    /// spring, ½ (f_t + f_t')·(−v_t dt) summed over the steps, is what the spring holds
+    /// at the end plus what the slider took, to round-off: loading into slip, sliding,
+    /// turning, and unloading with the normal force falling (the cone shrinking under a
+    /// spring at its edge, where the force-times-slip estimate µ f_n' |s − s'| missed
+    /// ½ k_t (|t| − |s'|)² a step).
+    #[test]
+    fn the_slider_takes_what_the_spring_is_given_and_does_not_keep() {
+        let law = ContactLaw::between(&BALLAST, &BALLAST, 1.73, 0.0);
+        let n = [0.0, 0.0, 1.0];
+        let (dt, mut xi) = (1e-6, [0.0; 3]);
+        let (mut work, mut slip, mut force) = (0.0, 0.0, [0.0; 3]);
+        for step in 0..400 {
+            let s = step as f64;
+            // Loading for 100 steps, then unloading to 1 % while sliding and turning.
+            let overlap = 1e-6
+                * if step < 100 {
+                    1.0
+                } else {
+                    1.0 - 0.99 * (s - 100.0) / 300.0
+                };
+            let v = [0.3 * (0.02 * s).cos(), 0.2 * (0.013 * s).sin(), 0.0];
+            let f = law.force(n, overlap, v, &mut xi, 1.0, dt);
+            // The tangential parts of the forces at the step's start and end.
+            let mean = [
+                0.5 * (force[0] + f.force[0]),
+                0.5 * (force[1] + f.force[1]),
+                0.0,
+            ];
+            work -= dot(mean, v) * dt;
+            slip += f.slip_dissipated;
+            force = f.force;
+        }
+        let held = 0.5 * law.tangential_stiffness * dot(xi, xi);
+        assert!(
+            slip > 0.1 * work,
+            "the test slides: slip {slip}, work {work}"
+        );
+        let error = (work - held - slip).abs();
+        assert!(
+            error < 1e-9 * work,
+            "work {work} J, held {held} J, slip {slip} J"
+        );
     }
 
     #[test]
