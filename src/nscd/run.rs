@@ -108,6 +108,7 @@ pub fn run_with(ctx: &RunContext, resume: bool) -> Result<()> {
         },
     };
     let mut pipeline = MoreauJean::new(params, options);
+    pipeline.set_warm_start(scene.solver.warm_start);
     if let Some(spec) = &scene.ddm {
         // Default partition: two equal slabs along x over the grains' extent.
         let grains: Vec<&Body> = bodies.iter().filter(|b| b.is_dynamic()).collect();

@@ -20,6 +20,7 @@
 //! alert_distance = "1 mm"
 //! depenetration_speed = "2 mm/s"    # optional: push existing overlaps out (packings)
 //! end_checks = 2                    # optional: re-solve a step whose motion cuts unseen features
+//! warm_start = 0.9                  # optional: share of last step's impulses carried (1)
 //!
 //! [gravity]
 //! magnitude = "9.81 m/s^2"
@@ -195,6 +196,14 @@ pub struct SolverSpec {
     pub check_every: usize,
     /// Contacts within this gap enter the problem.
     pub alert_distance: Length,
+    /// Share of the last step's impulses each contact starts the solve from (1, the
+    /// default; see [`super::step::MoreauJean::set_warm_start`]).
+    #[serde(default = "unit_share")]
+    pub warm_start: f64,
+}
+
+fn unit_share() -> f64 {
+    1.0
 }
 
 fn default_max_sweeps() -> usize {
@@ -590,6 +599,7 @@ impl Validate for NscdScene {
         if let Some(n) = self.solver.sweeps {
             v.check("solver.sweeps", n > 0, "must be at least 1");
         }
+        v.in_range("solver.warm_start", self.solver.warm_start, 0.0, 1.0);
         v.check(
             "solver.max_sweeps",
             self.solver.max_sweeps > 0,

@@ -188,6 +188,9 @@ pub struct MoreauJean {
     solved: Vec<SolvedContact>,
     /// The keys of the contacts this step's end-of-step checks added.
     carried: HashSet<ContactKey>,
+    /// The share of its last impulse each contact starts the step from
+    /// ([`Self::set_warm_start`]).
+    warm_start: f64,
 }
 
 impl MoreauJean {
@@ -210,7 +213,21 @@ impl MoreauJean {
             inverse_inertia: Vec::new(),
             solved: Vec::new(),
             carried: HashSet::new(),
+            warm_start: 1.0,
         }
+    }
+
+    /// Sets the share of its previous impulse that each contact starts the next solve
+    /// from (1, the default: all of it). Rigid contacts leave the self-stress of a
+    /// hyperstatic cluster undetermined (a stone column between a held sleeper and the
+    /// floor carries any compression), and a fully warm-started solve carries it from
+    /// step to step, where (as we read it) the small turn of the contact frames in each
+    /// step converts part of it into motion and the next solve into more self-stress: on the quick
+    /// bed's final settle it grew from 0.1 to 190 N·s in 52 steps, faster with more sweeps,
+    /// and threw the bed up (docs/nscd.md, "Warm start and self-stress"). Below 1 that
+    /// part decays by this factor per step unless the loads make it again.
+    pub fn set_warm_start(&mut self, factor: f64) {
+        self.warm_start = factor;
     }
 
     /// The contacts of the last step with their impulses.
@@ -564,7 +581,8 @@ impl MoreauJean {
             if self.memory.contains(&c.key) {
                 warm_started += 1;
             }
-            self.impulses.push(self.memory.get(&c.key));
+            let warm = self.memory.get(&c.key);
+            self.impulses.push(warm.map(|r| self.warm_start * r));
         }
         warm_started
     }

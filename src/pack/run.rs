@@ -327,6 +327,7 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
         tolerance: d.tolerance,
         max_sweeps: d.max_sweeps,
         finish_sweeps: d.finish_sweeps,
+        held_warm_start: d.held_warm_start,
         friction,
         rain_friction,
         settle_speed: d.settle_speed.si(),

@@ -36,6 +36,8 @@
 //! tolerance = 1e-4                      # NLGS
 //! max_sweeps = 300
 //! finish_sweeps = 500                   # cap once the drag is off (final settle)
+//! held_warm_start = 0.9                 # share of last step's impulses carried while
+//!                                       # sleepers are held (default 1)
 //! alert_distance = "2 mm"
 //! depenetration_speed = "2 mm/s"        # overlaps of unconverged steps pushed out
 //! end_checks = 2                        # re-solve a step whose motion cuts unseen features
@@ -217,6 +219,11 @@ pub struct DepositSpec {
     /// the bed that the drag no longer takes out (docs/pack.md, "Final settle").
     #[serde(default = "default_finish_sweeps")]
     pub finish_sweeps: usize,
+    /// Share of the last step's impulses that warm-starts the solve while the sleepers
+    /// are held (`MoreauJean::set_warm_start`; default 1, all of it); all of it
+    /// otherwise.
+    #[serde(default = "default_held_warm_start")]
+    pub held_warm_start: f64,
     /// Alert distance of the contact detection.
     pub alert_distance: Length,
     /// Speed at which the engine pushes existing overlaps out (unconverged steps under
@@ -312,6 +319,10 @@ pub struct OutputSpec {
 }
 
 /// The seed's n_DDM for its Table 3 case (seed 000 §4.2).
+fn default_held_warm_start() -> f64 {
+    1.0
+}
+
 fn default_finish_sweeps() -> usize {
     500
 }
@@ -512,6 +523,7 @@ impl Validate for BedScene {
         let d = &self.deposit;
         v.positive("deposit.dt", d.dt);
         v.in_range("deposit.theta", d.theta, 0.5, 1.0);
+        v.in_range("deposit.held_warm_start", d.held_warm_start, 0.0, 1.0);
         v.check(
             "deposit.tolerance",
             d.tolerance.is_finite() && d.tolerance > 0.0,
