@@ -198,12 +198,8 @@ pub struct SolverSpec {
     pub alert_distance: Length,
     /// Share of the last step's impulses each contact starts the solve from (1, the
     /// default; see [`super::step::MoreauJean::set_warm_start`]).
-    #[serde(default = "unit_share")]
+    #[serde(default = "unit_scale")]
     pub warm_start: f64,
-}
-
-fn unit_share() -> f64 {
-    1.0
 }
 
 fn default_max_sweeps() -> usize {

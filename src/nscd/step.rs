@@ -222,10 +222,11 @@ impl MoreauJean {
     /// hyperstatic cluster undetermined (a stone column between a held sleeper and the
     /// floor carries any compression), and a fully warm-started solve carries it from
     /// step to step, where (as we read it) the small turn of the contact frames in each
-    /// step converts part of it into motion and the next solve into more self-stress: on the quick
-    /// bed's final settle it grew from 0.1 to 190 N·s in 52 steps, faster with more sweeps,
-    /// and threw the bed up (docs/nscd.md, "Warm start and self-stress"). Below 1 that
-    /// part decays by this factor per step unless the loads make it again.
+    /// step converts part of it into motion and the next solve into more self-stress:
+    /// on the quick bed's final settle it grew from 0.1 to 190 N·s in 52 steps, faster
+    /// with more sweeps, and threw the bed up (docs/nscd.md, "Warm start and
+    /// self-stress"). Below 1 that part decays by this factor per step unless the loads
+    /// make it again.
     pub fn set_warm_start(&mut self, factor: f64) {
         self.warm_start = factor;
     }

@@ -893,13 +893,7 @@ impl Deposition {
     /// cap `finish_sweeps`, and a phase settles only when no body point is fast either.
     pub fn finish(&mut self) {
         self.finishing = true;
-        self.phase_rules();
-    }
-
-    /// Sets the engine's sweep cap for the phase: the finishing ones (no drag) cap the
-    /// sweeps at `finish_sweeps`. Called again by a resumed run.
-    pub(super) fn phase_rules(&mut self) {
-        self.engine.options.stopping = Self::stopping(&self.setup, self.finishing);
+        self.engine.options.stopping = Self::stopping(&self.setup, true);
     }
 
     /// The NLGS stopping rule: the tolerance, and the sweep cap of the phase.

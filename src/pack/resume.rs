@@ -264,7 +264,7 @@ impl Deposition {
         bed.stepping = Duration::from_secs_f64(state.stepping_s);
         bed.phases = state.phases.clone();
         bed.finishing = state.finishing;
-        bed.phase_rules();
+        bed.engine.options.stopping = Deposition::stopping(&bed.setup, bed.finishing);
         bed.vibrating = state.vibrating;
         bed.random = SplitMix(state.random);
         bed.inserted = state.inserted;

@@ -222,7 +222,7 @@ pub struct DepositSpec {
     /// Share of the last step's impulses that warm-starts the solve while the sleepers
     /// are held (`MoreauJean::set_warm_start`; default 1, all of it); all of it
     /// otherwise.
-    #[serde(default = "default_held_warm_start")]
+    #[serde(default = "unit")]
     pub held_warm_start: f64,
     /// Alert distance of the contact detection.
     pub alert_distance: Length,
@@ -319,10 +319,6 @@ pub struct OutputSpec {
 }
 
 /// The seed's n_DDM for its Table 3 case (seed 000 §4.2).
-fn default_held_warm_start() -> f64 {
-    1.0
-}
-
 fn default_finish_sweeps() -> usize {
     500
 }
