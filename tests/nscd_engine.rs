@@ -98,6 +98,22 @@ fn cube_stack_stays_at_rest_for_ten_seconds() {
         .collect();
     assert_eq!(second[1], 40.0);
     assert_eq!(second[2], 40.0);
+    // The strongest contact: the floor's four corner contacts carry the ten 2.7 kg
+    // cubes, W = 264.87 N in all; each pushes (≥ 0), so the largest lies between W/4
+    // and W (a self-stress, or an impulse not divided by the step, would leave it).
+    let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+    let force = header
+        .iter()
+        .position(|&h| h == "max_contact_force_N")
+        .unwrap();
+    let weight = 10.0 * 2700.0 * 0.1f64.powi(3) * 9.81;
+    for line in csv.lines().skip(2) {
+        let f: f64 = line.split(',').nth(force).unwrap().parse().unwrap();
+        assert!(
+            f >= weight / 4.0 * (1.0 - 1e-6) && f <= weight * (1.0 + 1e-6),
+            "strongest contact {f} N against W = {weight} N"
+        );
+    }
     let grains = std::fs::read_to_string(dir.path().join("grains.pvd")).unwrap();
     assert!(grains.contains("frames/grains_0000.vtu"));
     let vtu = std::fs::read_to_string(dir.path().join("frames/grains_0001.vtu")).unwrap();

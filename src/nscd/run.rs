@@ -11,7 +11,8 @@
 //!   first body's mass centre (the contact point for a plane) to the second's, with cell
 //!   fields `normal_impulse_N_s`, `tangential_impulse_N_s`, `normal`, `gap_m`;
 //! - `residuals.csv`: per step, contacts, warm starts, NLGS sweeps and error, max and
-//!   mean interpenetration, kinetic energy, external work and the energy rise;
+//!   mean interpenetration, the strongest contact's force, kinetic energy, external
+//!   work and the energy rise;
 //! - `summary.json`: the figures (listed in `docs/nscd.md`).
 
 use std::path::Path;
@@ -280,6 +281,7 @@ pub fn run_with(ctx: &RunContext, resume: bool) -> Result<()> {
             report.nlgs.error,
             report.max_interpenetration,
             report.mean_interpenetration,
+            report.max_contact_force,
             report.kinetic_energy,
             report.external_work,
             report.energy_rise,
@@ -779,6 +781,7 @@ impl Outputs {
                     "nlgs_error",
                     "max_interpenetration_m",
                     "mean_interpenetration_m",
+                    "max_contact_force_N",
                     "kinetic_energy_J",
                     "external_work_J",
                     "energy_rise_J",

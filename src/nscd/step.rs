@@ -139,6 +139,10 @@ pub struct StepReport {
     pub max_interpenetration: f64,
     /// Mean interpenetration over the contacts that carry a normal impulse (m).
     pub mean_interpenetration: f64,
+    /// Largest normal impulse of the step over its length (N): the strongest contact.
+    /// A self-stress that a warm start carries over and grows (docs/nscd.md, "Warm
+    /// start and self-stress") shows here first, long before the kinetic energy does.
+    pub max_contact_force: f64,
     /// Kinetic energy at the end of the step (J).
     pub kinetic_energy: f64,
     /// Work of gravity and of the driven bodies over the step (J).
@@ -401,6 +405,7 @@ impl MoreauJean {
         // Work of driven bodies: the impulse they give times their velocity.
         let mut max_pen: f64 = 0.0;
         let (mut pen_sum, mut active) = (0.0, 0usize);
+        let mut max_normal: f64 = 0.0;
         self.solved.clear();
         for ((c, row), r) in self.points.iter().zip(&self.rows).zip(&self.impulses) {
             let solved = SolvedContact {
@@ -418,6 +423,7 @@ impl MoreauJean {
             }
             // A contact carried back by an end-of-step check has a linearised gap,
             // not a distance at the start: the start's overlaps are the detected ones.
+            max_normal = max_normal.max(r[0]);
             if !self.carried.contains(&c.key) {
                 max_pen = max_pen.max(-c.gap);
                 if r[0] > 0.0 {
@@ -445,6 +451,7 @@ impl MoreauJean {
             } else {
                 0.0
             },
+            max_contact_force: max_normal / self.params.dt,
             kinetic_energy,
             external_work,
             energy_rise: kinetic_energy - kinetic_before - external_work,

@@ -17,7 +17,7 @@ use crate::output::{CsvSeries, Grid, PvdWriter};
 use crate::{Error, Result};
 
 /// Columns of `deposit.csv`.
-const COLUMNS: [&str; 8] = [
+const COLUMNS: [&str; 9] = [
     "time_s",
     "phase",
     "stones",
@@ -26,6 +26,7 @@ const COLUMNS: [&str; 8] = [
     "nlgs_error",
     "kinetic_energy_J",
     "max_interpenetration_m",
+    "max_contact_force_N",
 ];
 
 /// When and where checkpoints go.
@@ -161,6 +162,7 @@ impl Observer for Recorder {
             r.nlgs.error,
             r.kinetic_energy,
             r.max_interpenetration,
+            r.max_contact_force,
         ];
         if let Err(e) = self.csv.push(&row) {
             self.failure = Some(e);
