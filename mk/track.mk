@@ -47,6 +47,19 @@ $(TRACK_STUDY)/friction.md: $(TRACK_MU:%=$(TRACK_STUDY)/mu-%/summary.json) | $(R
 $(TRACK_STUDY)/stones.md: $(TRACK_STONES:%=$(TRACK_STUDY)/stones-%/summary.json) | $(RELEASE)/ballast-post
 	$(RELEASE)/ballast-post track-compare $(TRACK_STONES:%=$(TRACK_STUDY)/stones-%) --out $(@:.md=)
 
+## Settlement against friction over many beds and trains (`make track-mu-ensemble`,
+## seed 004 §4.1): TRACK_MU_SEEDS impact-quick beds (seeds 1..N) × TRACK_MU_SPEEDS
+## trains, the first bogie over the sleeper at µ = 0.577 and 1.73 (the quick scene, 2
+## threads, ≈ 1.5 min a run); the table and the paired statistics go to
+## results/track-mu-ensemble.md. Beds, loads and runs already there are reused.
+TRACK_MU_SEEDS ?= 6
+TRACK_MU_SPEEDS ?= 115
+.PHONY: track-mu-ensemble
+track-mu-ensemble: scenes/track_impact.toml scenes/bed.toml $(STONE_MESHES) $(TRACK_SLEEPER) | $(RELEASE)/ballast-pack $(RELEASE)/ballast-qdem $(RELEASE)/ballast-post $(VENV_STAMP)
+	$(PY) tools/track_ensemble.py --pack $(RELEASE)/ballast-pack --qdem $(RELEASE)/ballast-qdem \
+	  --post $(RELEASE)/ballast-post --seeds $(TRACK_MU_SEEDS) --speeds "$(TRACK_MU_SPEEDS)" \
+	  --out results/track-mu-ensemble | tee results/track-mu-ensemble.md
+
 # The paper preset's bed (its scene reads this file): `make results/bed-impact/summary.json`.
 TRACK_PAPER_BED := results/bed-impact/packing.toml
 

@@ -49,6 +49,8 @@ import tempfile
 import time
 import tomllib
 
+import ensemble as ensemble_tools
+
 # Seed 000 Table 3 (minutes): version -> (cores, total, detection, NLGS, other).
 SEED_TABLE3 = {
     1: (1, 923, 193, 708, 22),
@@ -336,29 +338,16 @@ def ensemble(pack, nscd, seeds, out):
     drivers = ("synchronous", "asynchronous")
     rows = []
     for seed in range(1, seeds + 1):
-        bed = os.path.join(out, "bed-%d" % seed)
-        if not os.path.exists(os.path.join(bed, "summary.json")):
-            print("tamping_report: packing the quick bed of seed %d" % seed, file=sys.stderr, flush=True)
-            subprocess.run([pack, "scenes/bed.toml", "--preset", "quick", "--set", "seed=%d" % seed,
-                            "--set", "output.frame_interval=0", "--set", "output.checkpoint_every=0",
-                            "--threads", "2", "--out", bed],
-                           check=True, stdout=subprocess.DEVNULL)
-        packing = os.path.abspath(os.path.join(bed, "packing.toml"))
-        with open(os.path.join(bed, "summary.json")) as f:
-            bed_figures = json.load(f)["figures"]
+        packing, bed_figures = ensemble_tools.pack_bed(pack, "quick", seed, out, "tamping_report")
         figures = {}
         for driver in drivers:
-            d = os.path.join(out, "tamping-%d-%s" % (seed, driver))
-            if not os.path.exists(os.path.join(d, "summary.json")):
-                print("tamping_report: seed %d, %s" % (seed, driver), file=sys.stderr, flush=True)
-                subprocess.run([nscd, SCENE, "--preset", "quick", "--threads", "2",
-                                "--set", "packing.file=%s" % json.dumps(packing),
-                                "--set", "ddm.driver=\"%s\"" % driver,
-                                "--set", "output.frames=0", "--set", "output.checkpoint_every=0",
-                                "--out", d],
-                               check=True, stdout=subprocess.DEVNULL)
-            with open(os.path.join(d, "summary.json")) as f:
-                figures[driver] = json.load(f)["figures"]
+            figures[driver] = ensemble_tools.run_once(
+                [nscd, SCENE, "--preset", "quick", "--threads", "2",
+                 "--set", "packing.file=%s" % json.dumps(packing),
+                 "--set", "ddm.driver=\"%s\"" % driver,
+                 "--set", "output.frames=0", "--set", "output.checkpoint_every=0"],
+                os.path.join(out, "tamping-%d-%s" % (seed, driver)), "tamping_report",
+                "seed %d, %s" % (seed, driver))
         rows.append((seed, bed_figures, figures))
     print("\n## Asynchronous against synchronous DDM over %d quick beds (one tamping cycle each)\n" % seeds)
     print("| bed seed | stones | before | after: sync / async | async − sync | squeeze: sync | squeeze: async | largest overlap during the run: sync / async (mm) |")
@@ -379,11 +368,7 @@ def ensemble(pack, nscd, seeds, out):
     print("\nmean compactness after: synchronous %.4f (sd %.4f), asynchronous %.4f (sd %.4f): %+.2f %%"
           % (mean["synchronous"], spread["synchronous"], mean["asynchronous"], spread["asynchronous"],
              100 * (mean["asynchronous"] - mean["synchronous"]) / mean["synchronous"]))
-    if len(diffs) > 1:
-        sd = statistics.stdev(diffs)
-        print("paired differences: mean %+.2f %%, sd %.2f %%, standard error %.2f %% over %d beds "
-              "(issue #7: within 2 %%; seed 000: 1.7 %%)"
-              % (100 * statistics.mean(diffs), 100 * sd, 100 * sd / len(diffs) ** 0.5, len(diffs)))
+    print(ensemble_tools.paired_line(diffs) + " (issue #7: within 2 %; seed 000: 1.7 %)")
 
 
 def main(argv):
