@@ -101,14 +101,14 @@ fn cube_stack_stays_at_rest_for_ten_seconds() {
     // The strongest contact: the floor's four corner contacts carry the ten 2.7 kg
     // cubes, W = 264.87 N in all; each pushes (≥ 0), so the largest lies between W/4
     // and W (a self-stress, or an impulse not divided by the step, would leave it).
-    let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+    let (header, rows) = common::read_csv(&dir.path().join("residuals.csv"));
     let force = header
         .iter()
-        .position(|&h| h == "max_contact_force_N")
+        .position(|h| h == "max_contact_force_N")
         .unwrap();
     let weight = 10.0 * 2700.0 * 0.1f64.powi(3) * 9.81;
-    for line in csv.lines().skip(2) {
-        let f: f64 = line.split(',').nth(force).unwrap().parse().unwrap();
+    for row in rows.iter().skip(1) {
+        let f = row[force];
         assert!(
             f >= weight / 4.0 * (1.0 - 1e-6) && f <= weight * (1.0 + 1e-6),
             "strongest contact {f} N against W = {weight} N"

@@ -9,6 +9,7 @@ scatter of the paired differences beside it.
 """
 
 import json
+import math
 import os
 import statistics
 import subprocess
@@ -42,19 +43,26 @@ def run_once(cmd, directory, tag, what):
         return json.load(f)["figures"]
 
 
-def paired_line(diffs, unit="%", scale=100.0):
+def paired_line(diffs, unit="%", scale=100.0, samples="beds"):
     """Mean, standard deviation and standard error of paired differences, and a 95 %
-    interval of the mean (Student t for small samples), as one line."""
+    interval of the mean (Student t for small samples), as one line; SAMPLES names what
+    the differences were taken over."""
     n = len(diffs)
     mean = statistics.mean(diffs) * scale
     if n < 2:
-        return "paired difference %+.2f %s (one bed: no spread)" % (mean, unit)
+        return "paired difference %+.2f %s (one sample: no spread)" % (mean, unit)
     sd = statistics.stdev(diffs) * scale
     se = sd / n ** 0.5
     t = T95[max(k for k in T95 if k <= n - 1)] if n - 1 <= 30 else 1.96
     return ("paired differences: mean %+.2f %s, sd %.2f %s, standard error %.2f %s, "
-            "95 %% interval %+.2f to %+.2f %s over %d beds"
-            % (mean, unit, sd, unit, se, unit, mean - t * se, mean + t * se, unit, n))
+            "95 %% interval %+.2f to %+.2f %s over %d %s"
+            % (mean, unit, sd, unit, se, unit, mean - t * se, mean + t * se, unit, n, samples))
+
+
+def sign_test(k, n):
+    """One-sided sign test: the chance of at least K of N pairs in one order if either
+    order were as likely."""
+    return sum(math.comb(n, j) for j in range(k, n + 1)) / 2 ** n
 
 
 # Two-sided 95 % quantiles of Student's t by degrees of freedom (above 30: 1.96 is

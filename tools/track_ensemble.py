@@ -22,7 +22,6 @@ interval. Beds, loads and runs already in DIR (with their summary.json) are reus
 """
 
 import csv
-import math
 import os
 import statistics
 import subprocess
@@ -66,7 +65,8 @@ def settlement_at(directory, t):
 
 def stone_settlement(directory):
     """The mean vertical displacement (m) of the stone sensors (B*) at the end of
-    DIR/sensors.csv: the ballast settlement of seed 004 Figure 8b."""
+    DIR/sensors.csv (seed 004 Figure 8b plots it as the ballast settlement; on rigid
+    10 cm stones it also carries their turning)."""
     with open(os.path.join(directory, "sensors.csv")) as f:
         reader = csv.reader(f)
         header = next(reader)
@@ -126,22 +126,19 @@ def main(argv):
     n = len(rows)
     for i, key in enumerate(keys):
         means = [statistics.mean(r[3][mu][i] for r in rows) for mu in MUS]
-        # one-sided sign test: the chance of at least this many pairs in seed 004's
-        # order if either order were as likely
-        p = sum(math.comb(n, j) for j in range(held[key], n + 1)) / 2 ** n
+        p = ensemble_tools.sign_test(held[key], n)
         print("\n%s: seed 004's ordering (less settlement at µ = 1.73) in %d of %d pairs (sign test p = %.2g); "
               "mean settlement %.3f mm at µ = 0.577, %.3f mm at µ = 1.73"
               % (labels[key], held[key], n, p, 1e3 * means[0], 1e3 * means[1]))
         print("settlement at µ = 0.577 beyond that at µ = 1.73, " + ensemble_tools.paired_line(
-            diffs[key], unit="mm", scale=1e3).replace(
-                "over %d beds" % n, "over %d pairs (%d beds × %d trains: the pairs on one bed share it)"
-                % (n, seeds, len(speeds))))
+            diffs[key], unit="mm", scale=1e3,
+            samples="pairs (%d beds × %d trains: the pairs on one bed share it)" % (seeds, len(speeds))))
         if len(speeds) > 1:
             # the beds are the independent samples: average each bed's trains
             per_bed = [statistics.mean(d for (seed, *_), d in zip(rows, diffs[key]) if seed == b)
                        for b in range(1, seeds + 1)]
             k = sum(d > 0 for d in per_bed)
-            p = sum(math.comb(seeds, j) for j in range(k, seeds + 1)) / 2 ** seeds
+            p = ensemble_tools.sign_test(k, seeds)
             print("per bed (its %d trains averaged): in seed 004's order on %d of %d beds (sign test p = %.2g); %s"
                   % (len(speeds), k, seeds, p, ensemble_tools.paired_line(per_bed, unit="mm", scale=1e3)))
     stones = [statistics.mean(r[3][mu][2] for r in rows) for mu in MUS]

@@ -421,9 +421,9 @@ impl MoreauJean {
             if matches!(bodies[b].motion, Motion::Driven(_)) {
                 external_work -= world.dot(&bodies[b].velocity);
             }
+            max_normal = max_normal.max(r[0]);
             // A contact carried back by an end-of-step check has a linearised gap,
             // not a distance at the start: the start's overlaps are the detected ones.
-            max_normal = max_normal.max(r[0]);
             if !self.carried.contains(&c.key) {
                 max_pen = max_pen.max(-c.gap);
                 if r[0] > 0.0 {
