@@ -1,5 +1,5 @@
 //! Boundary conditions of a QDEM run: fixed directions per node, group loads with a time
-//! function, gravity. Node lists come from the mesh's physical groups (see
+//! function, springs on a group's mean displacement, gravity. Node lists come from the mesh's physical groups (see
 //! [`Constraints::fix_group`], [`NodalLoad::on_group`]); the scene layer names them.
 
 use crate::mesh::TetMesh;
@@ -203,18 +203,8 @@ impl NodalLoad {
 
     pub(crate) fn validate(&self, index: usize, node_count: usize) -> Result<()> {
         let fail = |what: String| Err(Error::Message(format!("QDEM load {index}: {what}")));
-        if self.nodes.is_empty() {
-            return fail("has no nodes".into());
-        }
-        if let Some(&n) = self.nodes.iter().find(|&&n| n as usize >= node_count) {
-            return fail(format!(
-                "node {n} does not exist (the model has {node_count} nodes)"
-            ));
-        }
-        let mut sorted = self.nodes.clone();
-        sorted.sort_unstable();
-        if let Some(w) = sorted.windows(2).find(|w| w[0] == w[1]) {
-            return fail(format!("node {} is listed twice", w[0]));
+        if let Err(what) = check_nodes(&self.nodes, node_count) {
+            return fail(what);
         }
         if self.total_force.iter().any(|f| !f.is_finite()) {
             return fail("total force is not finite".into());
@@ -225,13 +215,74 @@ impl NodalLoad {
     }
 }
 
-/// Everything applied to a body from outside: constraints, loads and gravity.
+/// A linear spring on the mean displacement of a node group along one direction: a
+/// support that holds a group as a whole, not each node (the rails at a sleeper's rail
+/// seat, which hold it along and across the track but let the seat's nodes deform).
+///
+/// With ū = e · (1/N) Σ_i (x_i − X_i) over the group's N nodes (X the reference
+/// positions), the potential ½ k ū² gives every node the force −k ū e / N. The
+/// integrator counts the potential with the strain energy, so the balance holds.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GroupSpring {
+    /// The held nodes (0-based, no duplicates).
+    pub nodes: Vec<u32>,
+    /// The spring's direction e (a unit vector).
+    pub direction: Vector3<f64>,
+    /// k (N/m).
+    pub stiffness: f64,
+}
+
+impl GroupSpring {
+    pub(crate) fn validate(&self, index: usize, node_count: usize) -> Result<()> {
+        let fail = |what: String| Err(Error::Message(format!("QDEM spring {index}: {what}")));
+        if let Err(what) = check_nodes(&self.nodes, node_count) {
+            return fail(what);
+        }
+        if !(self.stiffness.is_finite() && self.stiffness >= 0.0) {
+            return fail(format!(
+                "stiffness {} N/m must be finite and ≥ 0",
+                self.stiffness
+            ));
+        }
+        let unit = (self.direction.norm() - 1.0).abs() < 1e-9;
+        if !unit {
+            return fail(format!(
+                "direction ({}, {}, {}) is not a unit vector",
+                self.direction.x, self.direction.y, self.direction.z
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Checks a node list: not empty, every node below `node_count`, none twice.
+fn check_nodes(nodes: &[u32], node_count: usize) -> std::result::Result<(), String> {
+    if nodes.is_empty() {
+        return Err("has no nodes".into());
+    }
+    if let Some(&n) = nodes.iter().find(|&&n| n as usize >= node_count) {
+        return Err(format!(
+            "node {n} does not exist (the model has {node_count} nodes)"
+        ));
+    }
+    let mut sorted = nodes.to_vec();
+    sorted.sort_unstable();
+    if let Some(w) = sorted.windows(2).find(|w| w[0] == w[1]) {
+        return Err(format!("node {} is listed twice", w[0]));
+    }
+    Ok(())
+}
+
+/// Everything applied to a body from outside: constraints, loads, group springs and
+/// gravity.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Boundary {
     /// Fixed directions.
     pub constraints: Constraints,
     /// Group loads.
     pub loads: Vec<NodalLoad>,
+    /// Springs on groups' mean displacements.
+    pub springs: Vec<GroupSpring>,
     /// Gravitational acceleration (m/s²), e.g. (0, 0, −9.81); zero for none.
     pub gravity: Vector3<f64>,
 }

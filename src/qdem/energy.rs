@@ -20,7 +20,8 @@ pub struct Energies {
     pub kinetic: f64,
     /// dt²/8 Σ m |a|² at the current step (see above).
     pub verlet_correction: f64,
-    /// Elastic strain energy at the current positions.
+    /// Elastic strain energy at the current positions, with the group springs'
+    /// ½ k ū² ([`super::GroupSpring`]).
     pub strain: f64,
     /// ∫ Σ V T_D : D dt, energy dissipated by the Kelvin–Voigt viscosity.
     pub viscous_dissipated: f64,

@@ -3,7 +3,8 @@
 //! One step from t_n to t_{n+1} = t_n + dt, in three phases:
 //! 1. nodes: v_{n+½} = v_n + dt/2 a_n, x_{n+1} = x_n + dt v_{n+½} (fixed directions held);
 //! 2. tetra: stress T(x_{n+1}, v_{n+½}) (eq. 1–8) and internal forces p_i (eq. 9–11),
-//!    by coloured blocks (bitwise identical for any thread count); then the group loads;
+//!    by coloured blocks (bitwise identical for any thread count); then the group
+//!    springs and the group loads;
 //! 3. nodes: a_{n+1} = (p + f_ext + m g − damping)/m, v_{n+1} = v_{n+½} + dt/2 a_{n+1}.
 //!
 //! The viscous stress uses the half-step velocity (the lagged central difference of
@@ -12,7 +13,7 @@
 //! energy above [`QdemOptions::blowup_energy_factor`] × (initial energy + most work put
 //! in) stops the run with an error naming the stable time step.
 
-use super::boundary::{Boundary, NodalLoad};
+use super::boundary::{Boundary, GroupSpring, NodalLoad};
 use super::colouring::PARALLEL_MIN_TETS;
 use super::element::{ElementSums, Vec3};
 use super::energy::Energies;
@@ -148,6 +149,7 @@ pub struct QdemSolver<'m> {
     options: QdemOptions,
     masks: Vec<u8>,
     loads: Vec<NodalLoad>,
+    springs: Vec<GroupSpring>,
     gravity: Vec3,
     forces: Vec<Force4>,
     /// Kinetic energy the current external forces alone would give in one step,
@@ -188,6 +190,9 @@ impl<'m> QdemSolver<'m> {
         for (i, load) in boundary.loads.iter().enumerate() {
             load.validate(i, n)?;
         }
+        for (i, spring) in boundary.springs.iter().enumerate() {
+            spring.validate(i, n)?;
+        }
         if boundary.gravity.iter().any(|g| !g.is_finite()) {
             return Err(Error::Message("QDEM: gravity is not finite".into()));
         }
@@ -210,6 +215,7 @@ impl<'m> QdemSolver<'m> {
             options,
             masks,
             loads: boundary.loads.clone(),
+            springs: boundary.springs.clone(),
             gravity: [boundary.gravity.x, boundary.gravity.y, boundary.gravity.z],
             forces: vec![Force4::default(); n],
             pending_energy: 0.0,
@@ -434,12 +440,13 @@ impl<'m> QdemSolver<'m> {
         time: f64,
         hook: Option<&mut ForceHook<'_>>,
     ) -> (ElementTotals, f64) {
-        let totals = self.model.internal_forces_with(
+        let mut totals = self.model.internal_forces_with(
             &state.positions,
             &state.velocities,
             &mut self.forces,
             &mut self.element_partials,
         );
+        totals.strain_energy += self.add_spring_forces(&state.positions);
         let gravity_squared = self.gravity.iter().map(|g| g * g).sum::<f64>();
         let dt2 = self.dt * self.dt;
         self.pending_energy = 0.5 * dt2 * gravity_squared * self.model.total_mass();
@@ -507,6 +514,32 @@ impl<'m> QdemSolver<'m> {
                 .for_each(kick);
         }
         (totals, hook_work)
+    }
+
+    /// Adds the group springs' forces −k ū e / N at positions `x` and returns their
+    /// potential Σ ½ k ū² ([`GroupSpring`]).
+    fn add_spring_forces(&mut self, x: &[Vec3]) -> f64 {
+        let reference = self.model.reference_positions();
+        let mut energy = 0.0;
+        for spring in &self.springs {
+            let e = spring.direction;
+            let mut sum = 0.0;
+            for &n in &spring.nodes {
+                let (xi, ri) = (x[n as usize], reference[n as usize]);
+                sum += e.x * (xi[0] - ri[0]) + e.y * (xi[1] - ri[1]) + e.z * (xi[2] - ri[2]);
+            }
+            let count = spring.nodes.len() as f64;
+            let mean = sum / count;
+            energy += 0.5 * spring.stiffness * mean * mean;
+            let per_node = -spring.stiffness * mean / count;
+            for &n in &spring.nodes {
+                let f = &mut self.forces[n as usize].0;
+                f[0] += per_node * e.x;
+                f[1] += per_node * e.y;
+                f[2] += per_node * e.z;
+            }
+        }
+        energy
     }
 
     /// Calls the hook, adds its forces, and returns their trapezoidal work over the

@@ -49,7 +49,7 @@ mod model;
 mod stability;
 mod structured;
 
-pub use boundary::{Boundary, Constraints, Directions, NodalLoad, TimeFunction};
+pub use boundary::{Boundary, Constraints, Directions, GroupSpring, NodalLoad, TimeFunction};
 pub use element::{linear_tetra_forces, subsurface_forces, von_mises};
 pub use energy::Energies;
 pub use integrate::{Damping, ForceHook, QdemOptions, QdemSolver, State};

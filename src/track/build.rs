@@ -2,7 +2,7 @@
 //! one QDEM model (sleeper first, so its nodes are `0..sleeper_nodes`), the other
 //! stones rigid; spheres at every surface vertex; the container's floor (and the walls
 //! across a periodic direction) as planes; the rail-seat loads on the sleeper's
-//! `rail_seat_1` (Rp1) and `rail_seat_2` (Rp2) groups.
+//! `rail_seat_1` (Rp1) and `rail_seat_2` (Rp2) groups, and the rails' hold on them.
 
 use std::collections::HashMap;
 use std::path::Path;
@@ -16,7 +16,7 @@ use crate::dem::{
 };
 use crate::mesh::{read_msh, TetMesh};
 use crate::pack::Packing;
-use crate::qdem::{Boundary, NodalLoad, QdemMaterial, QdemModel, TimeFunction};
+use crate::qdem::{Boundary, GroupSpring, NodalLoad, QdemMaterial, QdemModel, TimeFunction};
 use crate::{Error, Result};
 
 /// A node sphere while building: (node, material, owner body, deformable index,
@@ -402,6 +402,26 @@ pub fn build(
                 total_force: Vector3::new(0.0, 0.0, -1.0),
                 time_fn: TimeFunction::Table { times, values },
             });
+        }
+    }
+    // The rails' hold: along the track and along the sleeper, horizontal (the
+    // sleeper mesh's x runs along the sleeper).
+    let axis = sleeper_place.pose().rotation * Vector3::x();
+    let lateral = Vector3::new(axis.x, axis.y, 0.0).normalize();
+    let longitudinal = Vector3::z().cross(&lateral);
+    for group in ["rail_seat_1", "rail_seat_2"] {
+        let nodes = &sleeper_mesh.group(group).expect("checked above").nodes;
+        for (direction, k) in [
+            (longitudinal, scene.rail.longitudinal.si()),
+            (lateral, scene.rail.lateral.si()),
+        ] {
+            if k > 0.0 {
+                boundary.springs.push(GroupSpring {
+                    nodes: nodes.clone(),
+                    direction,
+                    stiffness: k,
+                });
+            }
         }
     }
     let sleeper_bottom = sleeper_mesh

@@ -22,6 +22,7 @@
 //!
 //! [ballast]            # material + DEM springs (seed 004 Table 1)
 //! [sleeper]
+//! [rail]               # longitudinal, lateral: the rails' hold per rail seat (N/m)
 //! [[sensor]]           # name, on = "sleeper" | "stone", at = sleeper-mesh coordinates
 //! ```
 
@@ -46,6 +47,9 @@ pub struct TrackScene {
     /// Friction coefficients.
     #[serde(default)]
     pub friction: FrictionSpec,
+    /// The rails' hold on the sleeper's rail seats along and across the track.
+    #[serde(default)]
+    pub rail: RailSpec,
     /// Acceleration and displacement sensors (seed 004 Figure 6).
     #[serde(default)]
     pub sensor: Vec<SensorSpec>,
@@ -242,6 +246,35 @@ impl Default for FrictionSpec {
     }
 }
 
+/// The rails' hold on the sleeper (`[rail]`): at each rail seat, a spring on the seat's
+/// mean horizontal displacement along the track (`longitudinal`) and along the sleeper
+/// (`lateral`), anchored where the packing left the seat ([`crate::qdem::GroupSpring`]).
+///
+/// Seed 004 loads the rail seats with measured pressures and models no rail; a sleeper
+/// without one slides off the slopes of the stones under it (4.7 mm along the track in
+/// the quick run's 0.07 s, docs/track.md). In track the rails, fastened to every
+/// sleeper, tie it to its neighbours, so the hold is the fastening's stiffness in series
+/// with the rest of the track's, which is far stiffer; 0 frees a direction.
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RailSpec {
+    /// Along the track, per rail seat.
+    #[serde(default = "default_rail_stiffness")]
+    pub longitudinal: Stiffness,
+    /// Along the sleeper (across the track), per rail seat.
+    #[serde(default = "default_rail_stiffness")]
+    pub lateral: Stiffness,
+}
+
+impl Default for RailSpec {
+    fn default() -> Self {
+        RailSpec {
+            longitudinal: default_rail_stiffness(),
+            lateral: default_rail_stiffness(),
+        }
+    }
+}
+
 /// Where a sensor sits.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -300,6 +333,9 @@ fn default_frames() -> usize {
 fn default_checkpoint_every() -> u64 {
     50_000
 }
+fn default_rail_stiffness() -> Stiffness {
+    Stiffness::from_si(20e6)
+}
 fn default_mu() -> f64 {
     0.577
 }
@@ -352,6 +388,8 @@ impl Validate for TrackScene {
         ] {
             v.check(key, mu.is_finite() && mu >= 0.0, "must be ≥ 0");
         }
+        v.non_negative("rail.longitudinal", self.rail.longitudinal);
+        v.non_negative("rail.lateral", self.rail.lateral);
         for (i, s) in self.sensor.iter().enumerate() {
             v.check(
                 &format!("sensor[{i}].name"),
