@@ -22,6 +22,7 @@ interval. Beds, loads and runs already in DIR (with their summary.json) are reus
 """
 
 import csv
+import json
 import os
 import statistics
 import subprocess
@@ -77,6 +78,15 @@ def stone_settlement(directory):
     return statistics.mean(values)
 
 
+def rail_hold(directory):
+    """The rails' hold the run in DIR had (its summary's `rail` inputs), as text."""
+    with open(os.path.join(directory, "summary.json")) as f:
+        rail = json.load(f)["inputs"].get("rail")
+    if not rail:
+        return "none (a scene without [rail])"
+    return "%s along the track, %s along the sleeper, per rail seat" % (rail["longitudinal"], rail["lateral"])
+
+
 def main(argv):
     opts = dict(zip(argv[0::2], argv[1::2]))
     if not {"--pack", "--qdem", "--post"} <= opts.keys():
@@ -105,9 +115,11 @@ def main(argv):
                 runs[mu] = (settlement_at(d, (t1 + t2) / 2), figures["sleeper_settlement_m"],
                             stone_settlement(d))
             rows.append((seed, speed, bed["grains"], runs))
+            last_run = d
 
     print("\n## Sleeper settlement at µ = 0.577 and µ = 1.73 over %d impact-quick beds (first bogie, 120 kN axles)\n"
           % seeds)
+    print("The rails' hold on the sleeper: %s.\n" % rail_hold(last_run))
     print("| bed seed | stones | km/h | sleeper between the axles: µ 0.577 / 1.73 (mm) | sleeper at the end: µ 0.577 / 1.73 (mm) | ordering (between / end) | stone sensors B1–B3 at the end, mean uz: µ 0.577 / 1.73 (mm) |")
     print("|---|---|---|---|---|---|---|")
     keys = ("between", "end")
