@@ -1,6 +1,7 @@
 //! Boundary conditions of a QDEM run: fixed directions per node, group loads with a time
-//! function, springs on a group's mean displacement, gravity. Node lists come from the mesh's physical groups (see
-//! [`Constraints::fix_group`], [`NodalLoad::on_group`]); the scene layer names them.
+//! function, springs on a group's mean displacement, gravity. Node lists come from the
+//! mesh's physical groups (see [`Constraints::fix_group`], [`NodalLoad::on_group`]); the
+//! scene layer names them.
 
 use crate::mesh::TetMesh;
 use crate::{Error, Result};

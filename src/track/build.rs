@@ -407,7 +407,15 @@ pub fn build(
     // The rails' hold: along the track and along the sleeper, horizontal (the
     // sleeper mesh's x runs along the sleeper).
     let axis = sleeper_place.pose().rotation * Vector3::x();
-    let lateral = Vector3::new(axis.x, axis.y, 0.0).normalize();
+    let lateral = Vector3::new(axis.x, axis.y, 0.0)
+        .try_normalize(1e-6)
+        .ok_or_else(|| {
+            Error::invalid(
+                packing_path,
+                "the sleeper stands on end (its axis is vertical): no track direction \
+                 for the rails' hold",
+            )
+        })?;
     let longitudinal = Vector3::z().cross(&lateral);
     for group in ["rail_seat_1", "rail_seat_2"] {
         let nodes = &sleeper_mesh.group(group).expect("checked above").nodes;
