@@ -385,27 +385,13 @@ pub fn build(
         });
     }
 
-    // Rail-seat loads: downwards, spread equally over each group's nodes.
+    // At each rail seat: its load, downwards, spread equally over the group's nodes;
+    // and the rails' hold, along the track and along the sleeper, horizontal (the
+    // sleeper mesh's x runs along the sleeper).
     let mut boundary = Boundary {
         gravity: Vector3::new(0.0, 0.0, -9.81),
         ..Boundary::default()
     };
-    if let Some(loads) = loads {
-        for (group, values) in [("rail_seat_1", &loads.rp1), ("rail_seat_2", &loads.rp2)] {
-            let nodes = sleeper_mesh
-                .group(group)
-                .map(|g| g.nodes.clone())
-                .unwrap_or_default();
-            let (times, values) = shifted_table(&loads.times, values, t.settle.si());
-            boundary.loads.push(NodalLoad {
-                nodes,
-                total_force: Vector3::new(0.0, 0.0, -1.0),
-                time_fn: TimeFunction::Table { times, values },
-            });
-        }
-    }
-    // The rails' hold: along the track and along the sleeper, horizontal (the
-    // sleeper mesh's x runs along the sleeper).
     let axis = sleeper_place.pose().rotation * Vector3::x();
     let lateral = Vector3::new(axis.x, axis.y, 0.0)
         .try_normalize(1e-6)
@@ -417,8 +403,17 @@ pub fn build(
             )
         })?;
     let longitudinal = Vector3::z().cross(&lateral);
-    for group in ["rail_seat_1", "rail_seat_2"] {
+    for (seat, group) in ["rail_seat_1", "rail_seat_2"].into_iter().enumerate() {
         let nodes = &sleeper_mesh.group(group).expect("checked above").nodes;
+        if let Some(loads) = loads {
+            let values = if seat == 0 { &loads.rp1 } else { &loads.rp2 };
+            let (times, values) = shifted_table(&loads.times, values, t.settle.si());
+            boundary.loads.push(NodalLoad {
+                nodes: nodes.clone(),
+                total_force: Vector3::new(0.0, 0.0, -1.0),
+                time_fn: TimeFunction::Table { times, values },
+            });
+        }
         for (direction, k) in [
             (longitudinal, scene.rail.longitudinal.si()),
             (lateral, scene.rail.lateral.si()),
