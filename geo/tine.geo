@@ -28,11 +28,33 @@ DefineConstant[
   bh = {0.08,  Name "Parameters/bh", Help "paddle height along z [m] (SAGE 2026 range 75-80 mm)"},
   bt = {0.02,  Name "Parameters/bt", Help "paddle thickness along x [m] (ASSUMED)"},
   sd = {0.04,  Name "Parameters/sd", Help "shank diameter [m] (ASSUMED)"},
-  sl = {0.40,  Name "Parameters/sl", Help "shank length above the paddle [m] (ASSUMED)"}
+  sl = {0.40,  Name "Parameters/sl", Help "shank length above the paddle [m] (ASSUMED)"},
+  bc = {0.0,   Name "Parameters/bc", Help "height of a chisel tip: the paddle's broad faces meet the tip edge at z = 0 over bc [m] (0: flat underside)"},
+  be = {0.004, Name "Parameters/be", Help "thickness of the chisel's tip edge along x [m] (used when bc > 0)"}
 ];
 
 paddle = 1;
-Box(paddle) = {-bt/2, -bw/2, 0, bt, bw, bh};          // [m]
+If (bc > 0)
+  // The paddle's cross-section in x-z, extruded along y: flat faces above z = bc,
+  // tapering to a tip edge be thick at z = 0.
+  pp[] = {};
+  pp[] += newp; Point(pp[0]) = {-be/2, -bw/2, 0};
+  pp[] += newp; Point(pp[1]) = { be/2, -bw/2, 0};
+  pp[] += newp; Point(pp[2]) = { bt/2, -bw/2, bc};
+  pp[] += newp; Point(pp[3]) = { bt/2, -bw/2, bh};
+  pp[] += newp; Point(pp[4]) = {-bt/2, -bw/2, bh};
+  pp[] += newp; Point(pp[5]) = {-bt/2, -bw/2, bc};
+  ll[] = {};
+  For i In {0:5}
+    ll[] += newl; Line(ll[i]) = {pp[i], pp[(i+1)%6]};
+  EndFor
+  cl = newcl; Curve Loop(cl) = {ll[]};
+  sf = news; Plane Surface(sf) = {cl};
+  ex[] = Extrude{0, bw, 0}{ Surface{sf}; };
+  paddle = ex[1];
+Else
+  Box(paddle) = {-bt/2, -bw/2, 0, bt, bw, bh};          // [m]
+EndIf
 shank = 2;
 Cylinder(shank) = {0, 0, bh, 0, 0, sl, sd/2};          // [m] sits on the paddle's top face
 // The shank (diameter sd) is thicker along x than the paddle (bt): its bottom disc
