@@ -15,6 +15,9 @@
 // ASSUMED: paddle thickness 0.02 m; shank a straight cylinder of diameter 0.04 m
 //   and length 0.40 m standing on the paddle (total 0.48 m, enough to reach
 //   ~0.45 m into the ballast); no bend, no taper, no neck fillet.
+// bc > 0 gives the paddle a chisel tip (an experiment, off by default): on the quick
+//   tamping bed it did not remove the stone that stays 20+ mm into the blade
+//   (docs/tamping.md, "Where the deep pairs come from").
 //
 // Physical groups:  Volume "tine";  Surface "blade" (all paddle faces),
 //                   "shank" (the faces of the shank, z >= bh, incl. the overhanging
