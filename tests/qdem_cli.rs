@@ -20,8 +20,17 @@ fn root() -> &'static Path {
 }
 
 fn run(args: &[&str]) -> Output {
+    run_with(args, &[])
+}
+
+/// Runs ballast-qdem with extra environment variables (stderr is a pipe, not a
+/// terminal, as in `make`'s logs; the progress interval is the default unless `env`
+/// sets it).
+fn run_with(args: &[&str], env: &[(&str, &str)]) -> Output {
     Command::new(QDEM)
         .args(args)
+        .env_remove("BALLAST_PROGRESS_S")
+        .envs(env.iter().copied())
         .current_dir(root())
         .output()
         .expect("cannot start ballast-qdem")
@@ -267,8 +276,43 @@ fn a_step_below_the_stable_one_stays_bounded() {
         "duration = \"5 ms\"\ndt_factor = 0.9\nframes = 1",
     );
     let out = dir.path().join("out");
-    let output = run(&[scene.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    let args = [scene.to_str().unwrap(), "--out", out.to_str().unwrap()];
+    // Without a terminal, progress comes as lines; BALLAST_PROGRESS_S = 0 writes one at
+    // every update, so this short run has them, with the step count, rate and time left.
+    let output = run_with(&args, &[("BALLAST_PROGRESS_S", "0")]);
     assert!(output.status.success(), "{}", stderr_of(&output));
+    let err = stderr_of(&output);
+    let lines: Vec<&str> = err
+        .lines()
+        .filter(|l| l.starts_with("ballast-qdem: step "))
+        .collect();
+    assert!(lines.len() >= 2, "{err}");
+    for line in &lines {
+        assert!(line.contains(" steps/s, eta "), "{line}");
+    }
+    let steps = |line: &str| -> (u64, u64) {
+        let field = line["ballast-qdem: step ".len()..]
+            .split(' ')
+            .next()
+            .unwrap();
+        let (pos, len) = field.split_once('/').unwrap();
+        (pos.parse().unwrap(), len.parse().unwrap())
+    };
+    let (first, len) = steps(lines[0]);
+    let (last, _) = steps(lines[lines.len() - 1]);
+    assert!(
+        0 < first && first < last && last <= len,
+        "{first} {last} {len}"
+    );
+    // A value that is not a number of seconds: one warning, the run goes on.
+    let output = run_with(&args, &[("BALLAST_PROGRESS_S", "soon")]);
+    assert!(output.status.success(), "{}", stderr_of(&output));
+    let err = stderr_of(&output);
+    assert!(
+        err.lines()
+            .any(|l| l.contains("BALLAST_PROGRESS_S=\"soon\" is not a number of seconds")),
+        "{err}"
+    );
     let summary: Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     let e = &summary["figures"]["final_energies_J"];

@@ -18,7 +18,6 @@
 use std::path::Path;
 use std::time::Instant;
 
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use nalgebra::{Point3, Vector3};
 
 use serde::{Deserialize, Serialize};
@@ -29,7 +28,7 @@ use super::nlgs::{ErrorCheck, NlgsOptions, Stopping};
 use super::scene::{DrivenBody, Model, NscdScene};
 use super::step::{MoreauJean, SolvedContact, StepParams};
 use crate::ddm::Partitioning;
-use crate::output::{write_json, CsvSeries, Grid, PvdWriter, RunClocks};
+use crate::output::{write_json, CsvSeries, Grid, Progress, PvdWriter, RunClocks};
 use crate::pack::contacts::warm_memory;
 use crate::scene::{PhaseTimer, RunContext, Summary};
 use crate::{Error, Result};
@@ -249,11 +248,7 @@ pub fn run_with(ctx: &RunContext, resume: bool) -> Result<()> {
             c.time
         );
     }
-    let bar = ProgressBar::with_draw_target(Some(steps), ProgressDrawTarget::stderr_with_hz(4));
-    bar.set_style(
-        ProgressStyle::with_template("{bar:40} {pos}/{len} steps, {per_sec}, eta {eta}")
-            .expect("valid template"),
-    );
+    let mut bar = Progress::steps(steps, "ballast-nscd");
     let start = Instant::now();
     let mut frames_s = 0.0;
     let mut time = (first_step - 1) as f64 * dt;

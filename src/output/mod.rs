@@ -23,6 +23,7 @@ pub mod checkpoint;
 pub mod csv;
 pub mod grid;
 pub mod json;
+pub mod progress;
 pub mod pvd;
 pub mod vtu;
 
@@ -33,5 +34,6 @@ pub use checkpoint::{
 pub use csv::CsvSeries;
 pub use grid::{points_from_nalgebra, CellKind, Field, FieldValues, Grid};
 pub use json::write_json;
+pub use progress::Progress;
 pub use pvd::{PvdEntry, PvdWriter};
 pub use vtu::{vtu_bytes, write_vtu};

@@ -7,13 +7,11 @@
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-
 use super::deposit::{Deposition, Observer, Role, StepRecord};
 use super::resume::{PackCheckpoint, PACK_CHECKPOINT_FORMAT};
 use crate::nscd::body::Body;
 use crate::nscd::run::{grains_grid, Drawn};
-use crate::output::{CsvSeries, Grid, PvdWriter};
+use crate::output::{CsvSeries, Grid, Progress, PvdWriter};
 use crate::{Error, Result};
 
 /// Columns of `deposit.csv`.
@@ -53,7 +51,7 @@ pub struct Recorder {
     /// written, the deposition stops ([`Observer::stop`]), and [`Self::finish`]
     /// returns it.
     failure: Option<Error>,
-    bar: ProgressBar,
+    bar: Progress,
     checkpoints: CheckpointPlan,
     /// Wall time of the runs before a resume.
     wall_before: Duration,
@@ -83,10 +81,7 @@ impl Recorder {
                 PvdWriter::create(pvd_path)?,
             ),
         };
-        let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::stderr_with_hz(4));
-        bar.set_style(
-            ProgressStyle::with_template("{spinner} {elapsed} {msg}").expect("valid template"),
-        );
+        let bar = Progress::spinner("ballast-pack");
         Ok(Recorder {
             csv,
             pvd,
@@ -179,7 +174,6 @@ impl Observer for Recorder {
             "{}: t = {:.2} s, {} stones, KE {:.2e} J, {} contacts",
             record.phase, record.time, record.stones, r.kinetic_energy, r.contacts
         ));
-        self.bar.tick();
     }
 
     fn between_steps(&mut self, bed: &Deposition) {

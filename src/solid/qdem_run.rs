@@ -16,14 +16,13 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde_json::{json, Value};
 
 use super::analysis::{analyse, ProbeSeries};
 use super::scene::{DampingSpec, QdemSpec, SolidScene, TimeStep};
 use super::setup::{boundary, case_material, probes, Probe};
 use crate::mesh::{read_msh, TetMesh};
-use crate::output::{write_json, CsvSeries, Grid, PvdWriter};
+use crate::output::{write_json, CsvSeries, Grid, Progress, PvdWriter};
 use crate::qdem::{
     stability, von_mises, Damping, QdemModel, QdemOptions, QdemSolver, StableTimeStep, State,
 };
@@ -237,7 +236,8 @@ fn run_case(
     output.sample(&state, &model)?;
     output.frame(&state, &solver, timer)?;
 
-    let bar = progress_bar(steps, &label);
+    let name = format!("ballast-qdem: {label}");
+    let mut bar = Progress::steps(steps, name.trim_end_matches([':', ' ']));
     let start = Instant::now();
     let mut frames_s = 0.0;
     let mut damped = until.is_some_and(|t| t > 0.0);
@@ -259,15 +259,6 @@ fn run_case(
         if step % sample_every == 0 || step == steps {
             output.sample(&state, &model)?;
             bar.set_position(step);
-        }
-        // Without a terminal (logs, make) the bar is hidden: a line every 10 %.
-        if bar.is_hidden() && steps >= 10 && step % (steps / 10) == 0 && step < steps {
-            say(format_args!(
-                "ballast-qdem: {label}step {step}/{steps} ({:.0} %), t = {:.4e} s, {:.0} s elapsed",
-                100.0 * step as f64 / steps as f64,
-                state.time,
-                start.elapsed().as_secs_f64()
-            ));
         }
         if step % frame_every == 0 || step == steps {
             let t = Instant::now();
@@ -307,16 +298,6 @@ fn run_case(
         stepping_s,
         tetra_updates_per_s: steps as f64 * model.tet_count() as f64 / stepping_s,
     })
-}
-
-pub(crate) fn progress_bar(steps: u64, label: &str) -> ProgressBar {
-    let bar = ProgressBar::with_draw_target(Some(steps), ProgressDrawTarget::stderr_with_hz(4));
-    bar.set_style(
-        ProgressStyle::with_template("{prefix}{bar:40} {pos}/{len} steps, {per_sec}, eta {eta}")
-            .expect("valid template"),
-    );
-    bar.set_prefix(label.to_string());
-    bar
 }
 
 /// The files one case writes.

@@ -27,14 +27,14 @@ use super::loads::RailSeatLoads;
 use super::scene::{DtSpec, TrackScene};
 use crate::dem::{MultiBodySolver, MultiState};
 use crate::output::{
-    read_checkpoint, write_checkpoint, write_json, CsvSeries, Grid, PvdWriter, RunClocks,
+    read_checkpoint, write_checkpoint, write_json, CsvSeries, Grid, Progress, PvdWriter, RunClocks,
     CHECKPOINT_FILE,
 };
 use crate::pack::Packing;
 use crate::post::track_sensors::QUANTITIES;
 use crate::qdem::von_mises;
 use crate::scene::{PhaseTimer, RunContext, Summary};
-use crate::solid::qdem_run::{progress_bar, say};
+use crate::solid::qdem_run::say;
 use crate::{Error, Result};
 
 /// Whether a scene file is a track scene (has a `[track]` table).
@@ -200,7 +200,7 @@ pub fn run(ctx: &RunContext, force: bool, resume: bool) -> Result<()> {
     };
     let started = Instant::now();
     let (first_step, touching_before) = (state.step, figures.touching_sum);
-    let bar = progress_bar(total_steps, "track ");
+    let mut bar = Progress::steps(total_steps, "ballast-qdem: track");
     bar.set_position(state.step);
     solver.set_damping(if state.step < settle_steps {
         t.settle_damping.si()
@@ -245,6 +245,7 @@ pub fn run(ctx: &RunContext, force: bool, resume: bool) -> Result<()> {
                 .write(&ctx.out_dir)?;
         }
         if state.step % 256 == 0 {
+            bar.set_message(format!("t = {:.4} s", state.time));
             bar.set_position(state.step);
         }
     }
