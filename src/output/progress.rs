@@ -63,14 +63,14 @@ impl Progress {
         Self::new(
             Some(len),
             label,
-            "{bar:40} {pos}/{len} steps, {per_sec}, eta {eta} {msg}",
+            "{prefix}{bar:40} {pos}/{len} steps, {per_sec}, eta {eta} {msg}",
         )
     }
 
     /// A spinner with a message, for a run whose length is not known in advance (a
     /// deposition runs until its phases settle).
     pub fn spinner(label: &str) -> Self {
-        Self::new(None, label, "{spinner} {elapsed} {msg}")
+        Self::new(None, label, "{prefix}{spinner} {elapsed} {msg}")
     }
 
     fn new(len: Option<u64>, label: &str, template: &str) -> Self {
@@ -82,6 +82,7 @@ impl Progress {
         };
         let bar = ProgressBar::with_draw_target(len, target);
         bar.set_style(ProgressStyle::with_template(template).expect("valid template"));
+        bar.set_prefix(format!("{label} "));
         let now = Instant::now();
         Progress {
             bar,
@@ -104,14 +105,16 @@ impl Progress {
         self.maybe_line(pos);
     }
 
-    /// Sets the text shown after the bar (the spinner's state); without a terminal,
-    /// writes a line if the interval has passed.
+    /// Sets the text shown after the bar (the spinner's state, or what a bar of steps
+    /// adds to its next line). A spinner without a terminal writes a line if the
+    /// interval has passed; a bar of steps waits for its next position.
     pub fn set_message(&mut self, message: String) {
         self.bar.set_message(message.clone());
         self.message = message;
         self.bar.tick();
-        let pos = self.bar.position();
-        self.maybe_line(pos);
+        if self.len.is_none() {
+            self.maybe_line(0);
+        }
     }
 
     /// Leaves the bar as it stands (the run stopped on an error).
