@@ -43,7 +43,6 @@ pub struct Progress {
     bar: ProgressBar,
     label: String,
     len: Option<u64>,
-    message: String,
     lines: Option<Lines>,
 }
 
@@ -88,7 +87,6 @@ impl Progress {
             bar,
             label: label.to_string(),
             len,
-            message: String::new(),
             lines: (!terminal).then(|| Lines {
                 every: log_interval(),
                 start: now,
@@ -109,8 +107,7 @@ impl Progress {
     /// adds to its next line). A spinner without a terminal writes a line if the
     /// interval has passed; a bar of steps waits for its next position.
     pub fn set_message(&mut self, message: String) {
-        self.bar.set_message(message.clone());
-        self.message = message;
+        self.bar.set_message(message);
         self.bar.tick();
         if self.len.is_none() {
             self.maybe_line(0);
@@ -140,12 +137,12 @@ impl Progress {
         }
         lines.last = now;
         let elapsed = now.duration_since(lines.start);
+        let message = self.bar.message();
         let line = match self.len {
-            Some(len) => steps_line(&self.label, pos, len, pos - first, elapsed, &self.message),
+            Some(len) => steps_line(&self.label, pos, len, pos - first, elapsed, &message),
             None => format!(
-                "{}: {}, {} elapsed",
+                "{}: {message}, {} elapsed",
                 self.label,
-                self.message,
                 duration_text(elapsed)
             ),
         };
