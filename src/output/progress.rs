@@ -153,7 +153,7 @@ impl Progress {
 /// One progress line of a run of `len` steps at `pos`, `done` of them in `elapsed`
 /// (since this process started: a resumed run's rate is its own):
 /// `label: step 1200/365200 (0.3 %), 412 steps/s, eta 14 min 42 s`, then `message`.
-pub fn steps_line(
+fn steps_line(
     label: &str,
     pos: u64,
     len: u64,
@@ -185,7 +185,7 @@ pub fn steps_line(
 }
 
 /// A duration for people: `45 s`, `12 min 30 s`, `2 h 05 min`.
-pub fn duration_text(d: Duration) -> String {
+fn duration_text(d: Duration) -> String {
     let s = d.as_secs_f64().round() as u64;
     match s {
         0..60 => format!("{s} s"),
