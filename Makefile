@@ -85,7 +85,7 @@ results/mesh_gallery/summary.json: scenes/mesh_gallery.toml $(OBJECT_MESHES) $(S
 
 ## README pictures: the meshes rendered from the gallery's VTK files, the QDEM quick
 ## chart, and the speed/accuracy chart when `make speed-accuracy` has run.
-readme-figure: docs/img/meshes.png docs/img/qdem_quick.png docs/img/bed_quick.png docs/img/tamping_quick.png
+readme-figure: docs/img/meshes.png docs/img/qdem_quick.png docs/img/bed_quick.png docs/img/bed_quick_compactness.png docs/img/tamping_quick.png
 	@if [ -f results/speed_accuracy/chart.png ]; then cp results/speed_accuracy/chart.png docs/img/speed_accuracy.png; fi
 docs/img/qdem_quick.png: $(QDEM_CHART)
 	@mkdir -p $(@D)
@@ -94,6 +94,9 @@ docs/img/tamping_quick.png: $(TAMPING_CHART)
 	@mkdir -p $(@D)
 	cp $< $@
 docs/img/bed_quick.png: $(PACK_CHART)
+	@mkdir -p $(@D)
+	cp $< $@
+docs/img/bed_quick_compactness.png: $(PACK_DEPTH_CHART)
 	@mkdir -p $(@D)
 	cp $< $@
 docs/img/meshes.png: tools/render_meshes.py results/mesh_gallery/summary.json | $(VENV_STAMP)

@@ -4,17 +4,22 @@
 
 PACK_QUICK := results/bed-quick/summary.json
 PACK_CHART := results/bed_quick.png
+# The quick bed's compactness by depth below each control box's top (ballast-post
+# compactness: the loose band under the sleepers apart from the bulk).
+PACK_DEPTH_CHART := results/bed_quick_compactness.png
 PACK_PRESETS := table3 tamping7 impact
 PACK_PERIODIC := results/bed-quick-periodic/summary.json
 PACK_PERIODIC_CHART := results/bed_quick_periodic.png
 
 .PHONY: pack-quick pack-periodic pack-presets
 
-pack-quick: $(PACK_CHART)
+pack-quick: $(PACK_CHART) $(PACK_DEPTH_CHART)
 $(PACK_QUICK): scenes/bed.toml $(STONE_MESHES) meshes/sleeper_type3.msh $(RUST_SOURCES) | $(RELEASE)/ballast-pack
 	$(RELEASE)/ballast-pack $< --preset quick --out $(@D)
 $(PACK_CHART): tools/pack_report.py $(PACK_QUICK) | $(VENV_STAMP)
 	$(PY) $< chart $(dir $(PACK_QUICK)) $@
+$(PACK_DEPTH_CHART): $(PACK_QUICK) | $(RELEASE)/ballast-post
+	$(RELEASE)/ballast-post compactness $(<D) --out $(@:.png=)
 
 ## The quick bed periodic along the track (bed.sides = "periodic"): the default `make`
 ## ends with it.

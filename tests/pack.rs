@@ -1,7 +1,8 @@
 //! `ballast-pack` through its command line on the quick preset of `scenes/bed.toml`:
 //! the summary's figures against the acceptance of issue #6, the packing and the VTK
 //! files read back (VTK's own reader), the same packing bit for bit on 1 and 2 threads,
-//! `ballast-nscd` building the same bed from the packing file, and one-line errors for
+//! `ballast-nscd` building the same bed from the packing file, `ballast-post compactness`
+//! measuring it again and by depth under the sleepers, and one-line errors for
 //! malformed packings.
 //!
 //! Needs the stone meshes of `make meshes` (meshes/stones/stone_*.msh).
@@ -18,6 +19,7 @@ use serde_json::Value;
 
 const PACK: &str = env!("CARGO_BIN_EXE_ballast-pack");
 const NSCD: &str = env!("CARGO_BIN_EXE_ballast-nscd");
+const POST: &str = env!("CARGO_BIN_EXE_ballast-post");
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -201,6 +203,135 @@ fn packing_and_vtk_files_read_back() {
         packing.stones.len() + 2,
         "the last frame is the final bed"
     );
+}
+
+/// `ballast-post compactness` on the quick bed into a temporary directory: its JSON.
+fn post_compactness(dir: &Path) -> (tempfile::TempDir, Value) {
+    let out = tempfile::tempdir().unwrap();
+    let output = Command::new(POST)
+        .arg("compactness")
+        .arg(dir)
+        .arg("--out")
+        .arg(out.path().join("c"))
+        .output()
+        .expect("ballast-post runs");
+    assert!(
+        output.status.success(),
+        "ballast-post compactness: {}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    for ext in ["md", "svg", "png"] {
+        let len = std::fs::metadata(out.path().join(format!("c.{ext}"))).map_or(0, |m| m.len());
+        assert!(len > 100, "c.{ext}: {len} bytes");
+    }
+    let text = std::fs::read_to_string(out.path().join("c.json")).unwrap();
+    (out, serde_json::from_str(&text).unwrap())
+}
+
+#[test]
+fn under_the_sleepers_the_bulk_is_in_the_published_band_below_a_loose_band() {
+    let dir = quick();
+    let f = figures(dir);
+    let (_out, post) = post_compactness(dir);
+    let close = |a: f64, b: f64| (a - b).abs() < 1e-9;
+    // The packing file read back gives the summary's compactness (its poses are written
+    // to round-off).
+    let boxes = post["boxes"].as_array().unwrap();
+    assert_eq!(boxes.len(), 4);
+    for b in boxes {
+        let (value, summary) = (
+            b["value"].as_f64().unwrap(),
+            b["summary_value"].as_f64().unwrap(),
+        );
+        assert!(
+            close(value, summary),
+            "{}: {value} against {summary}",
+            b["box"]
+        );
+    }
+    // Volumes add: the slices' mean is the box's compactness.
+    let profiles = post["profiles"].as_array().unwrap();
+    for (p, b) in profiles.iter().zip(boxes) {
+        let slices = p["slices"].as_array().unwrap();
+        let mean = slices
+            .iter()
+            .map(|s| s["value"].as_f64().unwrap())
+            .sum::<f64>()
+            / slices.len() as f64;
+        assert!(
+            close(mean, b["value"].as_f64().unwrap()),
+            "{}: mean {mean}",
+            p["box"]
+        );
+    }
+    // ballast-pack's own profiles under the sleepers are the same (a quarter of d50).
+    let own = f["compactness_profiles"]
+        .as_array()
+        .expect("compactness_profiles");
+    let names: Vec<&str> = own.iter().map(|p| p["box"].as_str().unwrap()).collect();
+    assert_eq!(names, ["under_sleeper_1", "under_sleeper_2"]);
+    for p in own {
+        let again = profiles.iter().find(|q| q["box"] == p["box"]).unwrap();
+        let (a, b) = (
+            p["slices"].as_array().unwrap(),
+            again["slices"].as_array().unwrap(),
+        );
+        assert_eq!(a.len(), b.len());
+        for (x, y) in a.iter().zip(b) {
+            assert!(close(
+                x["value"].as_f64().unwrap(),
+                y["value"].as_f64().unwrap()
+            ));
+        }
+        let bulk = p["below_one_d50"].as_f64().unwrap();
+        assert!(close(bulk, again["below_one_d50"].as_f64().unwrap()));
+        // A flat underside on a granular bed leaves a loose band about half a stone
+        // deep (the wall effect): the top quarter-d50 slice is far looser than the
+        // bulk below the top d50 ...
+        let top = a[0]["value"].as_f64().unwrap();
+        assert!(
+            top < bulk - 0.1,
+            "{}: top slice {top}, below d50 {bulk}",
+            p["box"]
+        );
+        // ... and that bulk is ballast as measured in track, away from faces: solid
+        // fraction 0.55–0.65 (porosity 0.35–0.45; Selig & Waters 1994; Indraratna et
+        // al. 2011), issue #6's acceptance.
+        assert!(
+            (0.55..=0.65).contains(&bulk),
+            "{}: below d50 {bulk}",
+            p["box"]
+        );
+    }
+}
+
+#[test]
+fn ballast_post_compactness_names_what_is_missing() {
+    let post = |dir: &Path| {
+        Command::new(POST)
+            .arg("compactness")
+            .arg(dir)
+            .output()
+            .expect("ballast-post runs")
+    };
+    let empty = tempfile::tempdir().unwrap();
+    common::assert_one_line_error(&post(empty.path()), 1, &["summary.json"]);
+    std::fs::write(
+        empty.path().join("summary.json"),
+        r#"{"figures": {"d50_m": 0.04}}"#,
+    )
+    .unwrap();
+    common::assert_one_line_error(
+        &post(empty.path()),
+        1,
+        &["summary.json", "figures.compactness"],
+    );
+    std::fs::write(
+        empty.path().join("summary.json"),
+        r#"{"figures": {"d50_m": 0.04, "compactness": []}}"#,
+    )
+    .unwrap();
+    common::assert_one_line_error(&post(empty.path()), 1, &["packing.toml"]);
 }
 
 #[test]

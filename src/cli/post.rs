@@ -15,7 +15,7 @@ use std::path::{Path, PathBuf};
     version,
     about = "Post-processing: mesh gallery (VTK + quality table), stone-family statistics \
              against the real grain library, speed/accuracy chart, train loads and track \
-             spectra; later compactness"
+             spectra, compactness of a packed bed by control box and depth"
 )]
 pub struct PostCli {
     #[command(subcommand)]
@@ -100,6 +100,20 @@ pub enum PostCommand {
         /// Peaks kept per sensor.
         #[arg(long, default_value_t = 5)]
         peaks: usize,
+    },
+    /// Compactness of a ballast-pack bed measured again from its packing file, in the
+    /// control boxes of its summary and by depth below each box's top (the loose band
+    /// under a sleeper's underside apart from the bulk below it).
+    Compactness {
+        /// Bed directory of ballast-pack (packing.toml, summary.json).
+        dir: PathBuf,
+        /// Slice height of the profiles, m [default: a quarter of the bed's d50].
+        #[arg(long, allow_negative_numbers = true)]
+        slice: Option<f64>,
+        /// Output prefix: PREFIX.md, PREFIX.json, PREFIX.svg, PREFIX.png [default:
+        /// DIR/compactness].
+        #[arg(long)]
+        out: Option<PathBuf>,
     },
 }
 
@@ -283,6 +297,15 @@ pub fn run_post(cli: PostCli) -> crate::Result<()> {
             let files = track_spectra::write_report(&record, &spectra, &out)?;
             print!("{}", spectra.peak_table());
             for file in files {
+                println!("wrote {}", file.display());
+            }
+            Ok(())
+        }
+        PostCommand::Compactness { dir, slice, out } => {
+            let report = crate::post::compactness::analyse(&dir, slice)?;
+            print!("{}", report.table());
+            let out = out.unwrap_or_else(|| dir.join("compactness"));
+            for file in crate::post::compactness::write_report(&report, &out)? {
                 println!("wrote {}", file.display());
             }
             Ok(())

@@ -131,6 +131,115 @@ pub fn solid_fraction(stones: &[&Body], bx: &ControlBox, period: Option<&Period>
     shares.iter().sum::<f64>() / bx.volume()
 }
 
+/// The slices of [`depth_profile`] under the sleepers, in d50: a quarter of a stone, fine
+/// enough to resolve the loose band under a flat face, coarse enough to hold a few
+/// stones' worth of volume per slice.
+pub const PROFILE_SLICE_OVER_D50: f64 = 0.25;
+
+/// One horizontal slice of a control box: how far below the box's top it lies (m) and
+/// the solid fraction in it.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Slice {
+    /// Depth of the slice's top below the box's top (m).
+    pub from_m: f64,
+    /// Depth of the slice's bottom below the box's top (m).
+    pub to_m: f64,
+    /// Σ volume(stone ∩ slice) / volume(slice).
+    pub value: f64,
+}
+
+/// A control box's [`depth_profile`], as `summary.json` and `ballast-post compactness`
+/// write it.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct BoxProfile {
+    /// The box's name (`under_sleeper_1` …).
+    #[serde(rename = "box")]
+    pub name: String,
+    /// The solid fraction of the box less its top d50: under a sleeper, the bulk below
+    /// the underside's loose band, the figure to set beside compactness measured in
+    /// track away from faces (`None` for a box less than a d50 high).
+    pub below_one_d50: Option<f64>,
+    /// Its slices from the top down.
+    pub slices: Vec<Slice>,
+}
+
+impl BoxProfile {
+    /// Measures box `name`: its [`depth_profile`] in slices near `slice` high and its
+    /// solid fraction below its top `d50`.
+    pub fn measure(
+        stones: &[&Body],
+        name: &str,
+        bx: &ControlBox,
+        slice: f64,
+        d50: f64,
+        period: Option<&Period>,
+    ) -> Self {
+        let mut bulk = *bx;
+        bulk.max.z -= d50;
+        BoxProfile {
+            name: name.to_string(),
+            below_one_d50: (bulk.volume() > 0.0).then(|| solid_fraction(stones, &bulk, period)),
+            slices: depth_profile(stones, bx, slice, period),
+        }
+    }
+
+    /// One line: the box, the slices' height and their values from the top down.
+    pub fn line(&self) -> String {
+        let h = self.slices.first().map_or(0.0, |s| s.to_m - s.from_m);
+        let values: Vec<String> = self
+            .slices
+            .iter()
+            .map(|s| format!("{:.3}", s.value))
+            .collect();
+        let bulk = self
+            .below_one_d50
+            .map_or(String::new(), |v| format!("; below its top d50: {v:.4}"));
+        format!(
+            "{} by depth below its top ({:.1} mm slices): {}{bulk}",
+            self.name,
+            1e3 * h,
+            values.join(" ")
+        )
+    }
+}
+
+/// The solid fraction of `bx` by depth below its top: the box cut into horizontal
+/// slices of equal height, as near `thickness` as a whole number of them allows (at
+/// least one), each measured as [`solid_fraction`]. Under a sleeper the top is its
+/// underside, so the profile shows the loose band a flat face leaves in a granular
+/// bed (the wall effect: about half a grain deep) apart from the bulk below it.
+/// The slices' mean is the box's compactness (volumes add).
+pub fn depth_profile(
+    stones: &[&Body],
+    bx: &ControlBox,
+    thickness: f64,
+    period: Option<&Period>,
+) -> Vec<Slice> {
+    let height = bx.max.z - bx.min.z;
+    if !(height > 0.0 && thickness > 0.0) {
+        return Vec::new();
+    }
+    let n = ((height / thickness).round() as usize).max(1);
+    let h = height / n as f64;
+    (0..n)
+        .map(|k| {
+            let (from_m, to_m) = (k as f64 * h, (k + 1) as f64 * h);
+            let mut slice = *bx;
+            slice.max.z = bx.max.z - from_m;
+            slice.min.z = if k + 1 == n {
+                bx.min.z
+            } else {
+                bx.max.z - to_m
+            };
+            Slice {
+                from_m,
+                to_m,
+                value: solid_fraction(stones, &slice, period),
+            }
+        })
+        .collect()
+}
+
 /// Mean number of contacting neighbours per stone, 2 P / N with P the stone–stone
 /// pairs that carry a normal impulse in `contacts` (several points of one pair count
 /// once); and the same with walls, floor and sleepers counted as neighbours.
@@ -225,6 +334,34 @@ mod tests {
         assert_eq!((crib.min.z, crib.max.z), (0.04, 0.4 - 0.04));
         let under = boxes[1].1;
         assert_eq!((under.min.y, under.max.y, under.max.z), (-0.5, 0.5, 0.3));
+    }
+
+    #[test]
+    fn a_profile_cuts_a_box_into_slices_whose_mean_is_the_box() {
+        use crate::nscd::body::BodyShape;
+        use std::sync::Arc;
+        // A 0.1 m cube whose top sits 0.02 m below the box's top (0.1 m high).
+        let cube = Arc::new(BodyShape::cuboid(Vector3::repeat(0.1)).unwrap());
+        let stone = Body::dynamic("s", cube, 1.0, 0, Isometry3::translation(0.0, 0.0, 0.03));
+        let bx = ControlBox {
+            min: Point3::new(-0.1, -0.1, 0.0),
+            max: Point3::new(0.1, 0.1, 0.1),
+        };
+        let slices = depth_profile(&[&stone], &bx, 0.026, None);
+        assert_eq!(
+            slices.len(),
+            4,
+            "0.1 m in slices near 0.026 m: four of 0.025"
+        );
+        let quarter = 0.25; // the cube's 0.1 × 0.1 footprint in the 0.2 × 0.2 box
+        let expected = [quarter * 0.005 / 0.025, quarter, quarter, quarter];
+        for (s, e) in slices.iter().zip(expected) {
+            assert!((s.value - e).abs() < 1e-12, "{s:?}, expected {e}");
+        }
+        assert!((slices[3].to_m - 0.1).abs() < 1e-15);
+        let mean = slices.iter().map(|s| s.value).sum::<f64>() / 4.0;
+        let whole = solid_fraction(&[&stone], &bx, None);
+        assert!((mean - whole).abs() < 1e-12, "{mean} against {whole}");
     }
 
     #[test]

@@ -27,7 +27,7 @@ use super::profile::Profile;
 use super::recorder::{CheckpointPlan, Recorder};
 use super::report::{
     compactness, control_boxes, coordination_numbers, interpenetration, median, stones_outside,
-    Compactness,
+    BoxProfile, Compactness, PROFILE_SLICE_OVER_D50,
 };
 use super::resume::{restore_from, PackCheckpoint};
 use super::scene::{BedScene, CompactionStage};
@@ -513,6 +513,7 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
         &boxes,
         bed.setup.params.period.as_ref(),
     );
+    let profiles = under_sleeper_profiles(&bed, &solid, d50);
     let top = bed
         .bodies
         .iter()
@@ -606,6 +607,10 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
         .figure("sleepers", sleepers.len())
         .figure("d50_m", d50)
         .figure("compactness", compactness_json)
+        .figure(
+            "compactness_profiles",
+            serde_json::to_value(&profiles).expect("profiles are plain numbers"),
+        )
         .figure("max_interpenetration_m", max_pen)
         .figure("deepest_overlap", deepest)
         .figure("mean_interpenetration_m", mean_pen)
@@ -656,11 +661,40 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
     for c in &solid {
         println!("ballast-pack: compactness {:<18} {:.4}", c.name, c.value);
     }
+    for p in &profiles {
+        println!("ballast-pack: {}", p.line());
+    }
     println!(
         "ballast-pack: wrote {}",
         ctx.out_dir.join("packing.toml").display()
     );
     Ok(())
+}
+
+/// The solid fraction under each sleeper by depth below its underside, in slices of
+/// [`PROFILE_SLICE_OVER_D50`] d50, and below its top d50 ([`BoxProfile::measure`]).
+fn under_sleeper_profiles(bed: &Deposition, solid: &[Compactness], d50: f64) -> Vec<BoxProfile> {
+    let stones: Vec<&Body> = bed
+        .bodies
+        .iter()
+        .zip(&bed.roles)
+        .filter(|(_, r)| matches!(r, Role::Stone(_)))
+        .map(|(b, _)| b)
+        .collect();
+    solid
+        .iter()
+        .filter(|c| c.name.starts_with("under_sleeper"))
+        .map(|c| {
+            BoxProfile::measure(
+                &stones,
+                &c.name,
+                &c.bx,
+                PROFILE_SLICE_OVER_D50 * d50,
+                d50,
+                bed.setup.params.period.as_ref(),
+            )
+        })
+        .collect()
 }
 
 /// Stones and sleepers as two body lists (for their VTK files).

@@ -1,8 +1,9 @@
 //! Post-processing: reports and metrics computed from meshes and results (mesh gallery,
 //! stone-family statistics, the speed/accuracy chart, train loads for the track scene
-//! and the track sensors' spectra; later compactness).
+//! the track sensors' spectra and the compactness of a packed bed).
 
 mod chart;
+pub mod compactness;
 pub mod mesh_gallery;
 pub mod speed_accuracy;
 mod track_charts;
