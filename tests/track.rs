@@ -264,6 +264,27 @@ fn the_bed_settles_less_under_higher_friction() {
             "{run}"
         );
     }
+    // The settlement passage by passage of the load (the first bogie's axles: one
+    // passage or more) adds up to the record's, from the load's start (t = 0) to its last
+    // sample, since the record is cut between them. (The summary's is at the last
+    // step, up to a sample later.)
+    for (run, dir) in runs.iter().zip([quick(), dir.as_path()]) {
+        let passages = run["passages"].as_array().expect("passages");
+        assert!(!passages.is_empty(), "{run}");
+        let sum: f64 = passages
+            .iter()
+            .map(|p| p["settlement_m"].as_f64().unwrap())
+            .sum();
+        let (header, rows) = read_csv(&dir.join("track.csv"));
+        let column = |name: &str| header.iter().position(|h| h == name).unwrap();
+        let (t, s) = (column("time_s"), column("sleeper_settlement_m"));
+        let start = rows.iter().find(|r| r[t] >= -1e-9).unwrap()[s];
+        let whole = rows.last().unwrap()[s] - start;
+        assert!(
+            (sum - whole).abs() < 1e-12,
+            "passages {sum} m against {whole} m"
+        );
+    }
     assert_eq!(runs[0]["spectrum_difference"].as_f64(), Some(0.0), "{json}");
     assert!(
         runs[1]["spectrum_difference"].as_f64().unwrap() > 0.0,

@@ -8,6 +8,7 @@ pub mod mesh_gallery;
 pub mod speed_accuracy;
 mod track_charts;
 pub mod track_compare;
+pub mod track_passages;
 pub mod track_sensors;
 pub mod track_spectra;
 pub mod train_load;

@@ -11,8 +11,11 @@
 //!   sleeper's (its bottom face, from the end of settling), and the stone sensors'
 //!   (B*: mean final vertical displacement, and their largest lateral one).
 //!
-//! Reads each directory's `summary.json` and `sensors.csv` (as `ballast-qdem` writes
-//! them); writes `PREFIX.md` (the table), `PREFIX.json`, the chart `PREFIX.svg/.png`
+//! Also the sleeper's settlement passage by passage of the load (bogie by bogie,
+//! [`super::track_passages`]).
+//!
+//! Reads each directory's `summary.json`, `sensors.csv` and `track.csv` (as
+//! `ballast-qdem` writes them); writes `PREFIX.md` (the table), `PREFIX.json`, the chart `PREFIX.svg/.png`
 //! and the runs' displacement histories on one chart, `PREFIX_histories.svg/.png`
 //! (seed 004 Figure 8 with every run on it).
 
@@ -24,6 +27,7 @@ use serde_json::{json, Value};
 
 use super::chart::{write_svg_png, Figure, LinePanel, Stacked, PALETTE};
 use super::track_charts::decimate;
+use super::track_passages::{read_passages, Passage};
 use super::track_sensors::read_sensors;
 use super::track_spectra::{smoothed_spectrum, with_suffix};
 use crate::{Error, Result};
@@ -80,6 +84,8 @@ pub struct ComparedRun {
     pub stone_lateral_m: f64,
     /// Relative L2 difference of the sensor's spectrum from the reference's.
     pub spectrum_difference: f64,
+    /// The sleeper's settlement passage by passage (bogie by bogie), from `track.csv`.
+    pub passages: Vec<Passage>,
 }
 
 fn figure(summary: &Value, path: &Path, key: &str) -> Result<f64> {
@@ -210,7 +216,9 @@ pub fn compare(
             let wall = summary["wall_time_s"]["stepping"].as_f64().ok_or_else(|| {
                 Error::invalid(&path, "wall_time_s.stepping: missing or not a number")
             })?;
+            let passages = read_passages(&dir.join("track.csv"))?;
             Ok(ComparedRun {
+                passages,
                 dir: dir.clone(),
                 label: label(&summary),
                 deformable_stones: figure(&summary, &path, "deformable_stones")? as u64,
@@ -274,6 +282,45 @@ pub fn table(runs: &[ComparedRun], reference: &Path, options: &CompareOptions) -
             }
         );
     }
+    s.push_str(&passage_table(runs));
+    s
+}
+
+/// The sleeper's settlement per passage of the load (a bogie, or axles close together;
+/// [`read_passages`]), a column per run, the passages' times from the first run.
+fn passage_table(runs: &[ComparedRun]) -> String {
+    let count = runs.iter().map(|r| r.passages.len()).max().unwrap_or(0);
+    if count == 0 {
+        return String::new();
+    }
+    let mut s = String::from(
+        "\nSleeper settlement per passage of the load (µm; the record cut midway between \
+         passages, so they add up to the whole):\n\n| passage | load above 10 % of its peak |",
+    );
+    for r in runs {
+        let _ = write!(s, " {} |", r.label);
+    }
+    s.push_str("\n|---|---|");
+    s.push_str(&"---:|".repeat(runs.len()));
+    s.push('\n');
+    for k in 0..count {
+        let when = runs
+            .iter()
+            .find_map(|r| r.passages.get(k))
+            .map_or(String::new(), |p| {
+                format!("{:.3}–{:.3} s", p.load_from_s, p.load_to_s)
+            });
+        let _ = write!(s, "| {} | {when} |", k + 1);
+        for r in runs {
+            match r.passages.get(k) {
+                Some(p) => {
+                    let _ = write!(s, " {:.1} |", 1e6 * p.settlement_m);
+                }
+                None => s.push_str(" — |"),
+            }
+        }
+        s.push('\n');
+    }
     s
 }
 
@@ -309,6 +356,7 @@ pub fn write_report(
             "stone_settlement_m": r.stone_settlement_m,
             "stone_lateral_m": r.stone_lateral_m,
             "spectrum_difference": r.spectrum_difference,
+            "passages": r.passages,
         })).collect::<Vec<_>>(),
     });
     crate::output::write_json(&js, &value)?;
