@@ -81,11 +81,14 @@ results/track_impact_paper_bogie.json: $(TRACK_PAPER_BOGIE) | $(RELEASE)/ballast
 ## train load (3.5 s) on the paper bed, ≈ 3.6 h on 2 cores at the first bogie's rate.
 ## A checkpoint every 50 000 steps (30 ms); a killed run resumes where it stopped, so
 ## it can be run in pieces, e.g. `nice -n 19 make track-paper TRACK_PAPER_THREADS=1`
-## beside other work. Its spectra go to results/track_impact_paper*.
+## beside other work. Its spectra go to results/track_impact_paper*, its settlement
+## bogie by bogie (and its histories) to results/track_impact_paper_passages*.
 TRACK_PAPER := results/track_impact-paper/summary.json
 TRACK_PAPER_THREADS ?= 2
 .PHONY: track-paper
-track-paper: results/track_impact_paper.json
+track-paper: results/track_impact_paper.json results/track_impact_paper_passages.md
+results/track_impact_paper_passages.md: $(TRACK_PAPER) | $(RELEASE)/ballast-post
+	$(RELEASE)/ballast-post track-compare $(<D) --out $(@:.md=)
 $(TRACK_PAPER): scenes/track_impact.toml $(TRACK_PAPER_BED) $(TRACK_PAPER_LOAD) | $(RELEASE)/ballast-qdem
 	$(call resume_or_run,$(@D),$(RELEASE)/ballast-qdem $< --preset paper --threads $(TRACK_PAPER_THREADS))
 results/track_impact_paper.json: $(TRACK_PAPER) | $(RELEASE)/ballast-post
