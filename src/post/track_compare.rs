@@ -15,9 +15,9 @@
 //! [`super::track_passages`]).
 //!
 //! Reads each directory's `summary.json`, `sensors.csv` and `track.csv` (as
-//! `ballast-qdem` writes them); writes `PREFIX.md` (the table), `PREFIX.json`, the chart `PREFIX.svg/.png`
-//! and the runs' displacement histories on one chart, `PREFIX_histories.svg/.png`
-//! (seed 004 Figure 8 with every run on it).
+//! `ballast-qdem` writes them); writes `PREFIX.md` (the tables), `PREFIX.json`, the
+//! chart `PREFIX.svg/.png` and the runs' displacement histories on one chart,
+//! `PREFIX_histories.svg/.png` (seed 004 Figure 8 with every run on it).
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
