@@ -74,6 +74,16 @@ pub fn control_boxes(
     boxes
 }
 
+/// The stones among `bodies` (by their `roles`).
+pub fn stone_bodies<'a>(bodies: &'a [Body], roles: &[Role]) -> Vec<&'a Body> {
+    bodies
+        .iter()
+        .zip(roles)
+        .filter(|(_, r)| matches!(r, Role::Stone(_)))
+        .map(|(b, _)| b)
+        .collect()
+}
+
 /// The solid fraction of the stones in each box, exactly (each stone's hull clipped by
 /// the box, [`convex_volume_in_box`]; with a `period`, its images too).
 pub fn compactness(
@@ -82,12 +92,7 @@ pub fn compactness(
     boxes: &[(String, ControlBox)],
     period: Option<&Period>,
 ) -> Vec<Compactness> {
-    let stones: Vec<&Body> = bodies
-        .iter()
-        .zip(roles)
-        .filter(|(_, r)| matches!(r, Role::Stone(_)))
-        .map(|(b, _)| b)
-        .collect();
+    let stones = stone_bodies(bodies, roles);
     boxes
         .iter()
         .map(|(name, bx)| Compactness {

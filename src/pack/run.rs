@@ -26,8 +26,8 @@ use super::packing::{PackedMesh, Packing, Placement, PACKING_FORMAT};
 use super::profile::Profile;
 use super::recorder::{CheckpointPlan, Recorder};
 use super::report::{
-    compactness, control_boxes, coordination_numbers, interpenetration, median, stones_outside,
-    BoxProfile, Compactness, PROFILE_SLICE_OVER_D50,
+    compactness, control_boxes, coordination_numbers, interpenetration, median, stone_bodies,
+    stones_outside, BoxProfile, Compactness, PROFILE_SLICE_OVER_D50,
 };
 use super::resume::{restore_from, PackCheckpoint};
 use super::scene::{BedScene, CompactionStage};
@@ -674,13 +674,7 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
 /// The solid fraction under each sleeper by depth below its underside, in slices of
 /// [`PROFILE_SLICE_OVER_D50`] d50, and below its top d50 ([`BoxProfile::measure`]).
 fn under_sleeper_profiles(bed: &Deposition, solid: &[Compactness], d50: f64) -> Vec<BoxProfile> {
-    let stones: Vec<&Body> = bed
-        .bodies
-        .iter()
-        .zip(&bed.roles)
-        .filter(|(_, r)| matches!(r, Role::Stone(_)))
-        .map(|(b, _)| b)
-        .collect();
+    let stones = stone_bodies(&bed.bodies, &bed.roles);
     solid
         .iter()
         .filter(|c| c.name.starts_with("under_sleeper"))

@@ -60,9 +60,7 @@ pub struct Report {
 /// summary and its profile in slices near `slice_m` high (default a quarter of d50).
 pub fn analyse(dir: &Path, slice_m: Option<f64>) -> Result<Report> {
     let summary_path = dir.join("summary.json");
-    let text = std::fs::read_to_string(&summary_path).map_err(|e| Error::io(&summary_path, e))?;
-    let summary: Value = serde_json::from_str(&text)
-        .map_err(|e| Error::invalid(&summary_path, format!("not JSON: {e}")))?;
+    let summary = super::read_json(&summary_path)?;
     let figures = &summary["figures"];
     let d50_m = figures["d50_m"]
         .as_f64()

@@ -75,9 +75,7 @@ pub fn collect(dirs: &[PathBuf]) -> Result<Vec<RunPoint>> {
     files.sort();
     let mut points = Vec::new();
     for file in files {
-        let text = std::fs::read_to_string(&file).map_err(|e| Error::io(&file, e))?;
-        let summary: Value = serde_json::from_str(&text)
-            .map_err(|e| Error::invalid(&file, format!("not JSON: {e}")))?;
+        let summary = super::read_json(&file)?;
         if let Some(p) = point(&file, &summary)? {
             points.push(p);
         }

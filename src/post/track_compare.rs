@@ -189,9 +189,7 @@ pub fn compare(
     dirs.iter()
         .map(|dir| {
             let path = dir.join("summary.json");
-            let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
-            let summary: Value = serde_json::from_str(&text)
-                .map_err(|e| Error::invalid(&path, format!("not JSON: {e}")))?;
+            let summary = super::read_json(&path)?;
             let figures = sensor_figures(dir, options)?;
             let (f, a) = (&figures.frequencies_hz, &figures.amplitudes);
             if f != ref_f {

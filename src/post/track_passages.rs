@@ -14,7 +14,8 @@
 
 use std::path::Path;
 
-use crate::{Error, Result};
+use super::track_sensors::read_table;
+use crate::Result;
 
 /// Width of the moving average over the load (s): one period of the roughness's slowest
 /// component (50 Hz, which it then takes out), shorter than an axle's passage (≈ 0.1 s
@@ -116,40 +117,18 @@ fn moving_average(time: &[f64], values: &[f64], width: f64) -> Vec<f64> {
 /// Reads `time_s`, `rp1_n + rp2_n` and `sleeper_settlement_m` from a run's `track.csv`
 /// (as `ballast-qdem` writes it) and returns its passages.
 pub fn read_passages(path: &Path) -> Result<Vec<Passage>> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    let mut lines = text.lines();
-    let header: Vec<&str> = lines.next().unwrap_or_default().split(',').collect();
-    let column = |name: &str| {
-        header
-            .iter()
-            .position(|h| *h == name)
-            .ok_or_else(|| Error::invalid(path, format!("no column {name}")))
-    };
-    let columns = [
-        column("time_s")?,
-        column("rp1_n")?,
-        column("rp2_n")?,
-        column("sleeper_settlement_m")?,
-    ];
-    let (mut time, mut load, mut settlement) = (Vec::new(), Vec::new(), Vec::new());
-    for (k, line) in lines.enumerate() {
-        let fields: Vec<&str> = line.split(',').collect();
-        let value = |c: usize| -> Result<f64> {
-            fields
-                .get(c)
-                .and_then(|f| f.trim().parse::<f64>().ok())
-                .ok_or_else(|| {
-                    Error::invalid(
-                        path,
-                        format!("line {}: column {} is not a number", k + 2, header[c]),
-                    )
-                })
-        };
-        time.push(value(columns[0])?);
-        load.push(value(columns[1])? + value(columns[2])?);
-        settlement.push(value(columns[3])?);
-    }
-    Ok(passages(&time, &load, &settlement))
+    let table = read_table(path)?;
+    let load: Vec<f64> = table
+        .column("rp1_n")?
+        .iter()
+        .zip(table.column("rp2_n")?)
+        .map(|(a, b)| a + b)
+        .collect();
+    Ok(passages(
+        &table.column("time_s")?,
+        &load,
+        &table.column("sleeper_settlement_m")?,
+    ))
 }
 
 #[cfg(test)]

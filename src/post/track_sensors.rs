@@ -92,7 +92,9 @@ pub struct LoadRecord {
 }
 
 /// A CSV file of numbers: the header and one vector per column.
-struct Table {
+/// A CSV of numbers with `time_s` first, column by column (the sensor, load and
+/// track records of the track scene).
+pub(super) struct Table {
     path: PathBuf,
     header: Vec<String>,
     columns: Vec<Vec<f64>>,
@@ -100,7 +102,9 @@ struct Table {
     lines: Vec<usize>,
 }
 
-fn read_table(path: &Path) -> Result<Table> {
+/// Reads a CSV of finite numbers whose first column is `time_s`, strictly increasing,
+/// with at least 2 rows; errors name the file and the line or column.
+pub(super) fn read_table(path: &Path) -> Result<Table> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
     let mut rows = text
         .lines()
@@ -176,7 +180,8 @@ fn read_table(path: &Path) -> Result<Table> {
 }
 
 impl Table {
-    fn column(&self, name: &str) -> Result<Vec<f64>> {
+    /// The column `name` (an error naming the file and the header if there is none).
+    pub(super) fn column(&self, name: &str) -> Result<Vec<f64>> {
         match self.header.iter().position(|h| h == name) {
             Some(i) => Ok(self.columns[i].clone()),
             None => Err(Error::invalid(
