@@ -91,7 +91,6 @@ pub struct LoadRecord {
     pub rp2_n: Vec<f64>,
 }
 
-/// A CSV file of numbers: the header and one vector per column.
 /// A CSV of numbers with `time_s` first, column by column (the sensor, load and
 /// track records of the track scene).
 pub(super) struct Table {
