@@ -811,6 +811,7 @@ fn assert_heavy_box_settled(f: &Value) -> f64 {
     let scale = figure(f, "sleeper_inertia_scale");
     assert!((8.0..11.0).contains(&scale), "inertia scale {scale}");
     assert_eq!(f["settled"], true, "{}", f["phases"]);
+    assert_eq!(f["capped_phases"], Value::Array(vec![]), "{}", f["phases"]);
     assert!(figure(f, "max_interpenetration_over_d50") < 1e-3);
     assert_eq!(figure(f, "stones_outside"), 0.0);
     scale
@@ -1485,7 +1486,7 @@ fn a_frame_that_cannot_be_written_stops_the_run_at_once() {
 
 /// A resumed run may shorten `deposit.max_phase_time` (a run-control key, like
 /// `output.checkpoint_every`): every phase from the checkpoint on ends by the new cap,
-/// reported as not settled, and the bed is written. Other keys stay refused.
+/// those cut reported as capped, and the bed is written. Other keys stay refused.
 #[test]
 fn a_resumed_run_may_shorten_the_phase_cap() {
     let (work, scene) = small_box_scene("0.12 m", BOX_SLEEPER, BOX_LAYER_COMPACTION);
@@ -1528,8 +1529,20 @@ fn a_resumed_run_may_shorten_the_phase_cap() {
         let time = p["time_s"].as_f64().unwrap();
         assert!(time <= cap + 1e-9, "phase over the new cap: {p}");
     }
-    // The layer settles in 1.5 s uncapped (40 ms in at the checkpoint); 0.5 s cuts it.
+    // The layer settles in 1.5 s uncapped (40 ms in at the checkpoint); 0.5 s cuts it,
+    // and the summary and the console name it among the capped phases.
     assert_eq!(phases[0]["settled"], Value::Bool(false), "{phases:?}");
-    assert!(stdout.contains("NOT SETTLED"), "{stdout}");
+    let capped = summary["figures"]["capped_phases"]
+        .as_array()
+        .expect("capped");
+    assert_eq!(capped[0], phases[0]["name"], "{capped:?}");
+    assert!(
+        stdout.contains("run to their 0.5 s cap without settling: under-sleeper layer"),
+        "{stdout}"
+    );
+    // The bed is settled when its last phase is, whatever the ones before it did.
+    let last = phases.last().unwrap()["settled"].as_bool().unwrap();
+    assert_eq!(summary["figures"]["settled"].as_bool(), Some(last));
+    assert_eq!(stdout.contains("NOT SETTLED"), !last, "{stdout}");
     assert!(out.join("packing.toml").exists());
 }

@@ -31,7 +31,8 @@
 //! # Settling
 //! A phase ends when the rms speed of the dynamic bodies, √(2 KE / Σm), is below the
 //! scene's `settle_speed` and no body point moves faster than four times that, or
-//! after `max_phase_time` (then reported as not settled).
+//! after `max_phase_time` (then reported as capped). The bed is settled when its last
+//! phase settled ([`Deposition::at_rest`]).
 //!
 //! # Stages and resuming
 //! The run calls a fixed sequence of stages (each [`Deposition::fill`],
@@ -417,6 +418,26 @@ impl Deposition {
     /// The contact points of the current configuration (a detection without a step).
     pub fn detect(&mut self) -> Vec<ContactPoint> {
         self.engine.detect(&self.bodies)
+    }
+
+    /// Whether the bed ends at rest: its last phase (the final settle, or the release
+    /// after a held one) met the finishing rules of [`Self::settled`] (rms speed, every
+    /// body point, every overlap). A phase before it that ran to its cap
+    /// ([`Self::capped_phases`]) shaped the bed, which its compactness measures, but
+    /// leaves nothing moving: a stone wedged against a wall under a held sleeper in a
+    /// final settle is pushed out once the sleeper is released (docs/pack.md, "Settled:
+    /// the last phase").
+    pub fn at_rest(&self) -> bool {
+        self.phases.last().is_some_and(|p| p.settled)
+    }
+
+    /// The phases that ran to `max_phase_time` without settling, in order.
+    pub fn capped_phases(&self) -> Vec<&str> {
+        self.phases
+            .iter()
+            .filter(|p| !p.settled)
+            .map(|p| p.name.as_str())
+            .collect()
     }
 
     /// The contacts of the last step with their impulses.

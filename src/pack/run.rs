@@ -555,7 +555,7 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
         &ctx.out_dir,
     )?;
     packing.crib_top_m = Some(crib_top);
-    packing.settled = Some(bed.phases.iter().all(|p| p.settled));
+    packing.settled = Some(bed.at_rest());
     // The last step's impulses at the final configuration, for a warm restart.
     let contacts = packed_contacts(&final_contacts, bed.last_contacts(), &body_refs(&bed.roles));
     write_atomic(
@@ -580,7 +580,8 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
     timer.add("output", clock.elapsed());
 
     let stepping = bed.stepping.as_secs_f64();
-    let settled = bed.phases.iter().all(|p| p.settled);
+    let settled = bed.at_rest();
+    let capped = bed.capped_phases();
     let phases: Vec<serde_json::Value> = bed
         .phases
         .iter()
@@ -624,6 +625,7 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
         .figure("floor_offset_m", bed.floor_offset())
         .figure("sleeper_inertia_scale", bed.setup.sleeper_inertia_scale)
         .figure("settled", settled)
+        .figure("capped_phases", capped.clone())
         .figure("phases", phases)
         .figure("steps", bed.steps)
         .figure("simulated_time_s", bed.time)
@@ -651,6 +653,18 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
             " — NOT SETTLED (see summary.json phases)"
         }
     );
+    if !capped.is_empty() {
+        println!(
+            "ballast-pack: phases run to their {:.1} s cap without settling: {}{}",
+            bed.setup.max_phase_time,
+            capped.join(", "),
+            if settled {
+                " (the last phase settled: the bed is at rest)"
+            } else {
+                ""
+            }
+        );
+    }
     println!(
         "ballast-pack: interpenetration max {:.2e} m ({:.3} % d50), mean {:.2e} m; \
          coordination {coordination:.2}; {outside} stones outside",
