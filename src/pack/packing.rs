@@ -14,7 +14,7 @@
 //! container_max = [1.8, 0.6, 0.9]
 //! sides = "walls"          # or "periodic": periodic along x (the track), walls in y
 //! crib_top_m = 0.3         # the crib ballast's surface (optional)
-//! settled = true           # whether every build phase settled (optional)
+//! settled = true           # whether the last build phase settled (optional)
 //! contacts = "contacts.csv" # the last step's contact impulses (optional; relative to
 //!                           # the packing file; crate::pack::contacts)
 //!
@@ -129,10 +129,12 @@ pub struct Packing {
     /// Level of the crib ballast's struck-off surface (m); absent in older files.
     #[serde(default)]
     pub crib_top_m: Option<f64>,
-    /// Whether every phase of the build passed its settle test (ballast-pack's
-    /// `summary.json` `settled`); absent in older files. A bed written NOT SETTLED (a
-    /// phase stopped at its time cap) is still a bed, but the solvers that read it say
-    /// that it does not start at rest ([`Packing::unsettled_note`]).
+    /// Whether the last phase of the build passed its settle test, so that the bed
+    /// is at rest (ballast-pack's `summary.json` `settled`; files written before
+    /// 2026-12-05 asked it of every phase); absent in older files. A bed written NOT
+    /// SETTLED (its last phase stopped at its time cap) is still a bed, but the
+    /// solvers that read it say that it does not start at rest
+    /// ([`Packing::unsettled_note`]).
     #[serde(default)]
     pub settled: Option<bool>,
     /// The contact impulses of the packing's last step (a CSV, relative to the packing
@@ -219,9 +221,9 @@ impl Packing {
     pub fn unsettled_note(&self, tool: &str, path: &Path) -> Option<String> {
         (self.settled == Some(false)).then(|| {
             format!(
-                "{tool}: note: {} was written NOT SETTLED (a build phase stopped at its \
-                 time cap; its summary.json gives the phases and the deepest overlap): \
-                 the bed does not start at rest",
+                "{tool}: note: {} was written NOT SETTLED (its last build phase stopped \
+                 at its time cap; its summary.json gives the phases and the deepest \
+                 overlap): the bed does not start at rest",
                 path.display()
             )
         })

@@ -655,8 +655,8 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
     );
     if !capped.is_empty() {
         println!(
-            "ballast-pack: phases run to their {:.1} s cap without settling: {}{}",
-            bed.setup.max_phase_time,
+            "ballast-pack: phases run to their cap (deposit.max_phase_time) without \
+             settling: {}{}",
             capped.join(", "),
             if settled {
                 " (the last phase settled: the bed is at rest)"
