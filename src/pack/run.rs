@@ -546,6 +546,7 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
 
     // Files.
     let clock = Instant::now();
+    let settled = bed.at_rest();
     let mut packing = packing_of(
         &scene,
         &bed,
@@ -555,7 +556,7 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
         &ctx.out_dir,
     )?;
     packing.crib_top_m = Some(crib_top);
-    packing.settled = Some(bed.at_rest());
+    packing.settled = Some(settled);
     // The last step's impulses at the final configuration, for a warm restart.
     let contacts = packed_contacts(&final_contacts, bed.last_contacts(), &body_refs(&bed.roles));
     write_atomic(
@@ -580,7 +581,6 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
     timer.add("output", clock.elapsed());
 
     let stepping = bed.stepping.as_secs_f64();
-    let settled = bed.at_rest();
     let capped = bed.capped_phases();
     let phases: Vec<serde_json::Value> = bed
         .phases
