@@ -23,6 +23,9 @@
       started (DIR/bench-binary.json says which commit), so that rebuilding the
       project between pieces does not restart hours of runs; --fresh drops the copy
       and every version and starts over with BIN.
+  tamping_report.py table DIR
+      the same tables from the versions finished so far in a bench directory DIR
+      (e.g. results/bench-tamping-table3), while the bench runs or after it stopped.
   tamping_report.py ensemble --pack BIN --nscd BIN --seeds N --out DIR
       the asynchronous driver against the synchronous one over N quick beds (seeds 1
       to N of `ballast-pack --preset quick`): each bed is tamped with both drivers
@@ -239,7 +242,6 @@ def bench(nscd, preset, steps, out, repeat=1, fresh=False):
     # A stopped bench (SIGTERM) still removes its scene copy and leaves its runs to resume.
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
     os.makedirs(out, exist_ok=True)
-    results = {}
     runs = {v: [] for v in VERSIONS}
     resumable = repeat == 1
     if resumable:
@@ -275,22 +277,32 @@ def bench(nscd, preset, steps, out, repeat=1, fresh=False):
                 if scene != SCENE:
                     os.remove(scene)
             with open(os.path.join(d, "summary.json")) as f:
-                results[version] = json.load(f)
-            runs[version].append(results[version])
-    times = {v: median_times(runs[v]) for v in VERSIONS}
-    ref = times[1]
+                runs[version].append(json.load(f))
+    print_tables(runs, preset, steps, note, repeat)
+
+
+def print_tables(runs, preset, steps, note, repeat=1):
+    """Prints the bench's tables (Table 3 layout, Table 2 speedups, the versions'
+    physics) from `runs` (version -> its runs' summaries); versions without runs are
+    left out, and the speedups need version 1."""
+    done = [v for v in VERSIONS if runs.get(v)]
+    times = {v: median_times(runs[v]) for v in done}
+    results = {v: runs[v][-1] for v in done}
     print("\n## Table 3 layout: %s preset, %d steps (minutes, %s; seed's in brackets)\n"
           % (preset, steps, "one run" if repeat == 1 else "medians of %d runs" % repeat))
     print("tamping_report: %s\n" % note)
-    print("| | " + " | ".join("version %d: %s" % (v, VERSIONS[v][0]) for v in VERSIONS) + " |")
-    print("|---|" + "---|" * len(VERSIONS))
+    missing = [v for v in VERSIONS if v not in done]
+    if missing:
+        print("not finished yet: %s\n" % ", ".join("version %d" % v for v in missing))
+    print("| | " + " | ".join("version %d: %s" % (v, VERSIONS[v][0]) for v in done) + " |")
+    print("|---|" + "---|" * len(done))
     rows = [("cores", None), ("total", "total"), ("contact detection", "detect"),
             ("NLGS solve", "solve"), ("— subdomains (parallel)", "sub"),
             ("— interface (sequential)", "gamma"), ("other parts", "other")]
     seed_col = {"total": 1, "detect": 2, "solve": 3, "other": 4}
     for label, key in rows:
         cells = []
-        for v in VERSIONS:
+        for v in done:
             if key is None:
                 cells.append("%d" % VERSIONS[v][2]
                              + (" [%d]" % SEED_TABLE3[v][0] if v in SEED_TABLE3 else ""))
@@ -305,19 +317,21 @@ def bench(nscd, preset, steps, out, repeat=1, fresh=False):
             print("\nversion %d ran in %d pieces (stopped and resumed); its times add them up%s"
                   % (v, pieces, "" if s["figures"].get("wall_times_complete", True)
                      else ", except a piece whose clocks were lost"))
-    print("\n## Speedup and efficiency against version 1 (Table 2 layout)\n")
-    print("| version | threads | NLGS speedup | NLGS efficiency | full speedup | full efficiency | seed full speedup |")
-    print("|---|---|---|---|---|---|---|")
-    for v in list(VERSIONS)[1:]:
-        p = times[v]
-        threads = VERSIONS[v][2]
-        s_solve = ref["solve"] / p["solve"]
-        s_full = ref["total"] / p["total"]
-        seed = ("%.2f on 3 cores" % (SEED_TABLE3[1][1] / SEED_TABLE3[v][1])
-                if v in SEED_TABLE3 else "—")
-        print("| %d | %d | %.2f | %.1f %% | %.2f | %.1f %% | %s |"
-              % (v, threads, s_solve, 100 * s_solve / threads, s_full,
-                 100 * s_full / threads, seed))
+    if 1 in times and len(done) > 1:
+        ref = times[1]
+        print("\n## Speedup and efficiency against version 1 (Table 2 layout)\n")
+        print("| version | threads | NLGS speedup | NLGS efficiency | full speedup | full efficiency | seed full speedup |")
+        print("|---|---|---|---|---|---|---|")
+        for v in done[1:]:
+            p = times[v]
+            threads = VERSIONS[v][2]
+            s_solve = ref["solve"] / p["solve"]
+            s_full = ref["total"] / p["total"]
+            seed = ("%.2f on 3 cores" % (SEED_TABLE3[1][1] / SEED_TABLE3[v][1])
+                    if v in SEED_TABLE3 else "—")
+            print("| %d | %d | %.2f | %.1f %% | %.2f | %.1f %% | %s |"
+                  % (v, threads, s_solve, 100 * s_solve / threads, s_full,
+                     100 * s_full / threads, seed))
     print("\n## Physics of the versions\n")
     print("| version | compactness before | after | squeeze start -> end | max interpenetration (m) | final mean interpenetration (m) |")
     print("|---|---|---|---|---|---|")
@@ -327,10 +341,32 @@ def bench(nscd, preset, steps, out, repeat=1, fresh=False):
         print("| %d | %.4f | %.4f | %.4f -> %.4f | %.3e | %.3e |"
               % (v, f["compactness_before"], f["compactness_after"], sq["start"], sq["end"],
                  f["max_interpenetration_m"], f["final_mean_interpenetration_m"]))
-    a, b = results[3]["figures"], results[2]["figures"]
-    diff = (a["compactness_after"] - b["compactness_after"]) / b["compactness_after"]
-    print("\nasynchronous vs synchronous compactness after: %+.2f %% (issue #7: within 2 %%; seed 000: 1.7 %%)"
-          % (100 * diff))
+    if 2 in results and 3 in results:
+        a, b = results[3]["figures"], results[2]["figures"]
+        diff = (a["compactness_after"] - b["compactness_after"]) / b["compactness_after"]
+        print("\nasynchronous vs synchronous compactness after: %+.2f %% (issue #7: within 2 %%; seed 000: 1.7 %%)"
+              % (100 * diff))
+
+
+def table(out):
+    """The tables of a bench directory's finished versions (those with a summary.json),
+    for a bench still running or stopped part way."""
+    runs = {}
+    for v in VERSIONS:
+        path = os.path.join(out, "version-%d" % v, "summary.json")
+        if os.path.exists(path):
+            with open(path) as f:
+                runs[v] = [json.load(f)]
+    if not runs:
+        sys.exit("tamping_report: %s: no finished version (no version-N/summary.json)" % out)
+    first = next(iter(runs.values()))[0]
+    try:
+        with open(os.path.join(out, "bench-binary.json")) as f:
+            stamp = json.load(f)
+        note = "ran the binary frozen %s from commit %s" % (stamp["frozen_utc"], stamp["commit"])
+    except (OSError, ValueError, KeyError):
+        note = "binary not recorded"
+    print_tables(runs, first["preset"], first["figures"]["steps"], note)
 
 
 def ensemble(pack, nscd, seeds, out):
@@ -380,6 +416,9 @@ def main(argv):
         bench(opts["--nscd"], opts.get("--preset", "table3"), int(opts.get("--steps", "2272")),
               opts.get("--out", "results/bench-tamping"), int(opts.get("--repeat", "1")),
               opts.get("--fresh", "0") == "1")
+        return 0
+    if len(argv) == 2 and argv[0] == "table":
+        table(argv[1])
         return 0
     if argv and argv[0] == "ensemble":
         opts = dict(zip(argv[1::2], argv[2::2]))
