@@ -1,8 +1,9 @@
 # ballast-nscd tamping (issue #7): scenes/tamping.toml on a ballast-pack bed. The quick
 # preset (on the quick bed) and its chart end the default `make`. `make bench-tamping`
-# (part of `make bench`) runs the seed's Table 3 case in its three versions: hours on
-# 2 cores, and it needs the table3 bed (`make pack-presets`); TAMPING_BENCH_STEPS=N runs
-# the first N of its 2 272 steps, TAMPING_BENCH_PRESET=quick the quick bed instead,
+# (part of `make bench`) runs the seed's Table 3 case in its three versions and two
+# more (docs/tamping.md): hours on 2 cores, and it needs the table3 bed (`make
+# pack-presets`); TAMPING_BENCH_STEPS=N runs the first N of its 2 272 steps,
+# TAMPING_BENCH_PRESET=quick the quick bed instead,
 # TAMPING_BENCH_REPEAT=R every version R times in turn (medians). With R = 1 a stopped
 # bench resumes: finished versions are reused, killed ones resumed, all with the binary
 # frozen when the bench first started; TAMPING_BENCH_FRESH=1 starts over with the current
