@@ -16,9 +16,9 @@
       1 / 3 / 3 cores), the speedup and efficiency as in its Table 2, and the
       asynchronous run's compactness against the synchronous one's (issue #7: within
       2 %; the seed: 1.7 %), and versions 5 against 4 in the layout of the seed's Table
-      2 (the parallel part's speedup; issue #7: at least 85 % on 2 threads). With --repeat R the versions run R times in turn and
-      every wall time is the median of its R runs (the runs of one version give the
-      same results, bit for bit). With one run per version the bench survives being
+      2 (the parallel part's speedup; issue #7: at least 85 % on 2 threads). With
+      --repeat R the versions run R times in turn and every wall time is the median of
+      its R runs (the runs of one version give the same results, bit for bit). With one run per version the bench survives being
       stopped: each version's directory keeps the command and the hashes of the
       binary, the scene and the bed it ran with, a finished version is reused and a
       killed one resumed from its checkpoint (written every 100 steps) when all are
