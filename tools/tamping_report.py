@@ -91,9 +91,18 @@ def balanced_scene(n):
     return path
 
 
-def load(directory):
+def read_summary(directory):
     with open(os.path.join(directory, "summary.json")) as f:
-        summary = json.load(f)
+        return json.load(f)
+
+
+def frozen_note(stamp):
+    """How a bench's frozen binary (its bench-binary.json `stamp`) is named in its tables."""
+    return "the binary frozen %s from commit %s" % (stamp["frozen_utc"], stamp["commit"])
+
+
+def load(directory):
+    summary = read_summary(directory)
     with open(os.path.join(directory, "tamping.csv")) as f:
         rows = [{k: float(v) for k, v in r.items()} for r in csv.DictReader(f)]
     return summary, rows
@@ -190,8 +199,7 @@ def frozen_binary(nscd, out, fresh):
             stamp = json.load(f)
         if file_hash(copy) == stamp["binary_sha256"]:
             return copy, stamp["binary_sha256"], (
-                "running the binary frozen %s from commit %s (--fresh to start over with %s)"
-                % (stamp["frozen_utc"], stamp["commit"], nscd))
+                "running %s (--fresh to start over with %s)" % (frozen_note(stamp), nscd))
     except (OSError, ValueError, KeyError):
         pass
     shutil.copy2(nscd, copy)
@@ -263,8 +271,7 @@ def bench(nscd, preset, steps, out, repeat=1, fresh=False):
                         "--set", "output.frames=0", "--set", "output.checkpoint_every=0",
                         "--set", "time.duration=1e-9"],
                        check=True, stdout=subprocess.DEVNULL)
-        with open(os.path.join(probe, "summary.json")) as f:
-            dt = json.load(f)["figures"]["dt_s"]
+        dt = read_summary(probe)["figures"]["dt_s"]
     # The versions in turn, so that a slow spell of the machine hits them alike.
     for r in range(repeat):
         for version, (name, driver, threads, balanced) in VERSIONS.items():
@@ -281,8 +288,7 @@ def bench(nscd, preset, steps, out, repeat=1, fresh=False):
             finally:
                 if scene != SCENE:
                     os.remove(scene)
-            with open(os.path.join(d, "summary.json")) as f:
-                runs[version].append(json.load(f))
+            runs[version].append(read_summary(d))
     print_tables(runs, preset, steps, note, repeat)
 
 
@@ -374,17 +380,16 @@ def table(out):
     for a bench still running or stopped part way."""
     runs = {}
     for v in VERSIONS:
-        path = os.path.join(out, "version-%d" % v, "summary.json")
-        if os.path.exists(path):
-            with open(path) as f:
-                runs[v] = [json.load(f)]
+        d = os.path.join(out, "version-%d" % v)
+        if os.path.exists(os.path.join(d, "summary.json")):
+            runs[v] = [read_summary(d)]
     if not runs:
         sys.exit("tamping_report: %s: no finished version (no version-N/summary.json)" % out)
     first = next(iter(runs.values()))[0]
     try:
         with open(os.path.join(out, "bench-binary.json")) as f:
             stamp = json.load(f)
-        note = "ran the binary frozen %s from commit %s" % (stamp["frozen_utc"], stamp["commit"])
+        note = "ran " + frozen_note(stamp)
     except (OSError, ValueError, KeyError):
         note = "binary not recorded"
     print_tables(runs, first["preset"], first["figures"]["steps"], note)
