@@ -2,14 +2,13 @@
 # train loads. `make track` packs the quick bed (ballast-pack impact-quick), writes a
 # train load (ballast-post train-load: the first bogie of one car at 115 km/h), runs the
 # quick track scene and draws its spectra and histories (ballast-post spectra). The
-# default `make` ends with it. Included by the main Makefile (RELEASE, STONE_MESHES), after
+# default `make` ends with it. Included by the main Makefile (RELEASE, STONE_MESHES,
+# TRACK_SLEEPER), after
 # mk/track-load.mk (TRACK_LOAD, TRACK_PAPER_LOAD).
 
 TRACK_BED := results/bed-impact-quick/packing.toml
-# The Type-3 sleeper meshed at 25 mm for the quick bed: its 24 mm contact spheres then
-# cover its faces (at the 5 cm of meshes/sleeper_type3.msh a stone's sphere passes
-# between them; seed 004's mesh has 10 mm edges).
-TRACK_SLEEPER := meshes/sleeper_type3_h0.025.msh
+# TRACK_SLEEPER, the Type-3 sleeper meshed at 25 mm, is defined by the main Makefile
+# before the fragments (mk/pack.mk names it too).
 TRACK_QUICK := results/track_impact-quick/summary.json
 TRACK_SPECTRA := results/track_impact_quick.json
 
