@@ -3,8 +3,7 @@
 # train load (ballast-post train-load: the first bogie of one car at 115 km/h), runs the
 # quick track scene and draws its spectra and histories (ballast-post spectra). The
 # default `make` ends with it. Included by the main Makefile (RELEASE, STONE_MESHES,
-# TRACK_SLEEPER), after
-# mk/track-load.mk (TRACK_LOAD, TRACK_PAPER_LOAD).
+# TRACK_SLEEPER), after mk/track-load.mk (TRACK_LOAD, TRACK_PAPER_LOAD).
 
 TRACK_BED := results/bed-impact-quick/packing.toml
 # TRACK_SLEEPER, the Type-3 sleeper meshed at 25 mm, is defined by the main Makefile
