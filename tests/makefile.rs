@@ -36,9 +36,18 @@ fn every_bed_and_bench_meshes_the_stones_before_it_runs() {
     let first_stone = "meshes/stones/stone_001.msh";
     let last_stone = "meshes/stones/stone_060.msh";
     for (target, tool) in [
-        ("results/bed-quick/summary.json", "ballast-pack scenes/bed.toml"),
-        ("results/bed-table3/summary.json", "ballast-pack scenes/bed.toml"),
-        ("results/bed-impact-quick/packing.toml", "ballast-pack scenes/bed.toml"),
+        (
+            "results/bed-quick/summary.json",
+            "ballast-pack scenes/bed.toml",
+        ),
+        (
+            "results/bed-table3/summary.json",
+            "ballast-pack scenes/bed.toml",
+        ),
+        (
+            "results/bed-impact-quick/packing.toml",
+            "ballast-pack scenes/bed.toml",
+        ),
         ("bench-ddm", "ballast-pack scenes/bed.toml"),
         ("bench-nscd", "ballast-nscd scenes/"),
     ] {

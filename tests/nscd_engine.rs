@@ -98,6 +98,13 @@ fn cube_stack_stays_at_rest_for_ten_seconds() {
         .collect();
     assert_eq!(second[1], 40.0);
     assert_eq!(second[2], 40.0);
+    // No DDM: no interface, and nothing measured on it (the last two columns).
+    assert!(csv
+        .lines()
+        .next()
+        .unwrap()
+        .ends_with(",interface_contacts,interface_mean_interpenetration_m"));
+    assert_eq!(second[second.len() - 2..], [0.0, 0.0]);
     // The strongest contact: the floor's four corner contacts carry the ten 2.7 kg
     // cubes, W = 264.87 N in all; each pushes (≥ 0), so the largest lies between W/4
     // and W (a self-stress, or an impulse not divided by the step, would leave it).
@@ -319,6 +326,29 @@ fn ddm_drivers_settle_the_drop_box_and_do_not_depend_on_the_thread_count() {
             figure(f, "final_kinetic_energy_J") < 1e-2 * figure(f, "max_kinetic_energy_J"),
             "{driver}: {f}"
         );
+    }
+    // The interface's own interpenetration (residuals.csv): contacts on Γ while the
+    // stones land, some of them overlapping, and a mean over Γ's pushing contacts that
+    // no contact's overlap exceeds.
+    for (driver, d) in [("synchronous", &two), ("asynchronous", &asyn)] {
+        let (header, rows) = common::read_csv(&d.join("residuals.csv"));
+        let column = |name: &str| header.iter().position(|h| h == name).unwrap();
+        let (n, mean, max) = (
+            column("interface_contacts"),
+            column("interface_mean_interpenetration_m"),
+            column("max_interpenetration_m"),
+        );
+        assert!(
+            rows.iter().any(|r| r[n] > 0.0),
+            "{driver}: never a contact on Γ"
+        );
+        assert!(
+            rows.iter().any(|r| r[mean] > 0.0),
+            "{driver}: Γ never overlaps"
+        );
+        for r in &rows {
+            assert!(r[mean] >= 0.0 && r[mean] <= r[max], "{driver}: {r:?}");
+        }
     }
     // Every grain of the last frame carries its subdomain (0 or 1), read by VTK.
     let frames: Vec<PathBuf> = std::fs::read_dir(two.join("frames"))

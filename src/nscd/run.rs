@@ -12,7 +12,8 @@
 //!   fields `normal_impulse_N_s`, `tangential_impulse_N_s`, `normal`, `gap_m`;
 //! - `residuals.csv`: per step, contacts, warm starts, NLGS sweeps and error, max and
 //!   mean interpenetration, the strongest contact's force, kinetic energy, external
-//!   work and the energy rise;
+//!   work and the energy rise; with a DDM, the interface's contacts and their mean
+//!   interpenetration;
 //! - `summary.json`: the figures (listed in `docs/nscd.md`).
 
 use std::path::Path;
@@ -280,6 +281,8 @@ pub fn run_with(ctx: &RunContext, resume: bool) -> Result<()> {
             report.kinetic_energy,
             report.external_work,
             report.energy_rise,
+            report.interface_contacts as f64,
+            report.interface_mean_interpenetration,
         ])?;
         if let Some(s) = slider {
             if time >= fit_after {
@@ -780,6 +783,8 @@ impl Outputs {
                     "kinetic_energy_J",
                     "external_work_J",
                     "energy_rise_J",
+                    "interface_contacts",
+                    "interface_mean_interpenetration_m",
                 ],
             )?,
             frames: resume.map_or(0, |(_, frames)| frames),

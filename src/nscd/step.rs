@@ -157,6 +157,10 @@ pub struct StepReport {
     pub solve_split: [Duration; 2],
     /// Contacts on the interface Γ (0 without a DDM).
     pub interface_contacts: usize,
+    /// Mean interpenetration over the interface contacts that carry a normal impulse
+    /// (m; 0 without a DDM): where the asynchronous driver's mass splitting leaves its
+    /// residual (docs/tamping.md, "Interpenetration of the asynchronous driver").
+    pub interface_mean_interpenetration: f64,
 }
 
 /// Domain decomposition of the solve: how grains are partitioned and which driver.
@@ -405,9 +409,17 @@ impl MoreauJean {
         // Work of driven bodies: the impulse they give times their velocity.
         let mut max_pen: f64 = 0.0;
         let (mut pen_sum, mut active) = (0.0, 0usize);
+        let (mut interface_pen_sum, mut interface_active) = (0.0, 0usize);
+        let interface = if self.ddm.is_some() {
+            self.decomposition.interface.clone()
+        } else {
+            0..0
+        };
         let mut max_normal: f64 = 0.0;
         self.solved.clear();
-        for ((c, row), r) in self.points.iter().zip(&self.rows).zip(&self.impulses) {
+        for (k, ((c, row), r)) in
+            (self.points.iter().zip(&self.rows).zip(&self.impulses)).enumerate()
+        {
             let solved = SolvedContact {
                 contact: *c,
                 frame: row.frame,
@@ -429,6 +441,10 @@ impl MoreauJean {
                 if r[0] > 0.0 {
                     pen_sum += (-c.gap).max(0.0);
                     active += 1;
+                    if interface.contains(&k) {
+                        interface_pen_sum += (-c.gap).max(0.0);
+                        interface_active += 1;
+                    }
                 }
             }
             self.solved.push(solved);
@@ -446,11 +462,8 @@ impl MoreauJean {
             warm_started,
             nlgs,
             max_interpenetration: max_pen,
-            mean_interpenetration: if active > 0 {
-                pen_sum / active as f64
-            } else {
-                0.0
-            },
+            mean_interpenetration: mean(pen_sum, active),
+            interface_mean_interpenetration: mean(interface_pen_sum, interface_active),
             max_contact_force: max_normal / self.params.dt,
             kinetic_energy,
             external_work,
@@ -667,6 +680,15 @@ impl MoreauJean {
                 }
             })
             .collect()
+    }
+}
+
+/// `sum / count`, or 0 for no term.
+fn mean(sum: f64, count: usize) -> f64 {
+    if count > 0 {
+        sum / count as f64
+    } else {
+        0.0
     }
 }
 
