@@ -30,6 +30,14 @@
   tamping_report.py table DIR
       the same tables from the versions finished so far in a bench directory DIR
       (e.g. results/bench-tamping-table3), while the bench runs or after it stopped.
+  tamping_report.py creep --pack BIN --nscd BIN --seeds N --out DIR [--until T] [--sweeps 50,100]
+      the interpenetration the two DDM drivers leave in a bed at rest: the quick preset
+      on the ensemble's beds (below; seeds 1 to N, reused from DIR) without the lift and
+      stopped at T s (0.12), before the tines reach the ballast (checked: no tine force),
+      for each number of DDM iterations a step; per bed the mean overlap over the
+      pushing contacts and over the interface's (residuals.csv, last step), and the
+      asynchronous-to-synchronous ratio. The asynchronous driver's mass splitting
+      relaxes the grains the interface shares (docs/tamping.md).
   tamping_report.py ensemble --pack BIN --nscd BIN --seeds N --out DIR
       the asynchronous driver against the synchronous one over N quick beds (seeds 1
       to N of `ballast-pack --preset quick`): each bed is tamped with both drivers
@@ -433,6 +441,69 @@ def ensemble(pack, nscd, seeds, out):
     print(ensemble_tools.paired_line(diffs) + " (issue #7: within 2 %; seed 000: 1.7 %)")
 
 
+def last_residuals(directory):
+    """The last row of DIRECTORY/residuals.csv, as floats."""
+    with open(os.path.join(directory, "residuals.csv")) as f:
+        rows = list(csv.DictReader(f))
+    return {k: float(v) for k, v in rows[-1].items()}
+
+
+def tines_touched(directory):
+    """Whether any tine felt a force in DIRECTORY/tamping.csv."""
+    with open(os.path.join(directory, "tamping.csv")) as f:
+        for row in csv.DictReader(f):
+            if any(float(v) != 0.0 for k, v in row.items()
+                   if k.startswith("tine_") and re.search(r"_f[xyz]_N$", k)):
+                return True
+    return False
+
+
+def creep(pack, nscd, seeds, out, until, sweeps_list):
+    """The interpenetration that the two DDM drivers leave in a bed at rest: the quick
+    tamping preset without the lift, stopped before the tines reach the ballast, on the
+    ensemble's quick beds (seeds 1..N, reused from OUT), at each sweep count."""
+    os.makedirs(out, exist_ok=True)
+    drivers = ("synchronous", "asynchronous")
+    print("\n## Interpenetration at rest: the quick beds under gravity for %s s "
+          "(the tines in the air, no lift), 2 slabs\n" % until)
+    print("| bed seed | DDM iterations a step | mean overlap, pushing contacts: sync / async (µm) "
+          "| async / sync | on the interface: sync / async (µm) | async / sync | deepest: sync / async (µm) |")
+    print("|---|---|---|---|---|---|---|")
+    ratios = {n: [] for n in sweeps_list}
+    for seed in range(1, seeds + 1):
+        packing, _ = ensemble_tools.pack_bed(pack, "quick", seed, out, "tamping_report")
+        for sweeps in sweeps_list:
+            last = {}
+            for driver in drivers:
+                directory = os.path.join(out, "creep-%d-%s-%d" % (seed, driver, sweeps))
+                ensemble_tools.run_once(
+                    [nscd, SCENE, "--preset", "quick", "--threads", "2",
+                     "--set", "packing.file=%s" % json.dumps(packing),
+                     "--set", "ddm.driver=\"%s\"" % driver,
+                     "--set", "solver.sweeps=%d" % sweeps,
+                     "--set", "time.duration=\"%s s\"" % until,
+                     "--set", "tamping.lift=\"0 mm\"",
+                     "--set", "output.frames=0", "--set", "output.checkpoint_every=0"],
+                    directory, "tamping_report", "creep: seed %d, %s, %d sweeps" % (seed, driver, sweeps))
+                if tines_touched(directory):
+                    sys.exit("tamping_report: %s: a tine touched the ballast before %s s; "
+                             "give a shorter --until" % (directory, until))
+                last[driver] = last_residuals(directory)
+            a, b = last["synchronous"], last["asynchronous"]
+            ratio = b["mean_interpenetration_m"] / a["mean_interpenetration_m"]
+            ratios[sweeps].append(ratio - 1.0)
+            gamma = [x["interface_mean_interpenetration_m"] for x in (a, b)]
+            print("| %d | %d | %.2f / %.2f | %.2f | %.2f / %.2f | %s | %.0f / %.0f |"
+                  % (seed, sweeps, 1e6 * a["mean_interpenetration_m"], 1e6 * b["mean_interpenetration_m"],
+                     ratio, 1e6 * gamma[0], 1e6 * gamma[1],
+                     "%.1f" % (gamma[1] / gamma[0]) if gamma[0] > 0 else "—",
+                     1e6 * a["max_interpenetration_m"], 1e6 * b["max_interpenetration_m"]))
+    print()
+    for sweeps in sweeps_list:
+        print("%d iterations: asynchronous against synchronous mean overlap, %s"
+              % (sweeps, ensemble_tools.paired_line(ratios[sweeps])))
+
+
 def main(argv):
     if len(argv) == 3 and argv[0] == "chart":
         chart(argv[1], argv[2])
@@ -450,6 +521,12 @@ def main(argv):
         opts = dict(zip(argv[1::2], argv[2::2]))
         ensemble(opts["--pack"], opts["--nscd"], int(opts.get("--seeds", "6")),
                  opts.get("--out", "results/tamping-ensemble"))
+        return 0
+    if argv and argv[0] == "creep":
+        opts = dict(zip(argv[1::2], argv[2::2]))
+        creep(opts["--pack"], opts["--nscd"], int(opts.get("--seeds", "3")),
+              opts.get("--out", "results/tamping-ensemble"), opts.get("--until", "0.12"),
+              [int(n) for n in opts.get("--sweeps", "50,100").split(",")])
         return 0
     print(__doc__, file=sys.stderr)
     return 2
