@@ -63,7 +63,8 @@ fn every_bed_and_bench_meshes_the_stones_before_it_runs() {
 
 #[test]
 fn the_seed_sized_beds_mesh_the_fine_sleeper_before_packing() {
-    // The presets with a sleeper for ballast-qdem (impact) read the 25 mm Type-3 mesh.
+    // The bed rule lists the 25 mm Type-3 mesh (the impact presets' sleeper, which
+    // ballast-qdem reads) for every preset.
     for target in [
         "results/bed-table3/summary.json",
         "results/bed-impact/summary.json",

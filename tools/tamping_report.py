@@ -490,13 +490,14 @@ def creep(pack, nscd, seeds, out, until, sweeps_list):
                              "give a shorter --until" % (directory, until))
                 last[driver] = last_residuals(directory)
             a, b = last["synchronous"], last["asynchronous"]
-            ratio = b["mean_interpenetration_m"] / a["mean_interpenetration_m"]
-            ratios[sweeps].append(ratio - 1.0)
+            mean = [x["mean_interpenetration_m"] for x in (a, b)]
+            if mean[0] > 0:
+                ratios[sweeps].append(mean[1] / mean[0] - 1.0)
             gamma = [x["interface_mean_interpenetration_m"] for x in (a, b)]
-            print("| %d | %d | %.2f / %.2f | %.2f | %.2f / %.2f | %s | %.0f / %.0f |"
-                  % (seed, sweeps, 1e6 * a["mean_interpenetration_m"], 1e6 * b["mean_interpenetration_m"],
-                     ratio, 1e6 * gamma[0], 1e6 * gamma[1],
-                     "%.1f" % (gamma[1] / gamma[0]) if gamma[0] > 0 else "—",
+            ratio = lambda x: "%.2f" % (x[1] / x[0]) if x[0] > 0 else "—"
+            print("| %d | %d | %.2f / %.2f | %s | %.2f / %.2f | %s | %.0f / %.0f |"
+                  % (seed, sweeps, 1e6 * mean[0], 1e6 * mean[1], ratio(mean),
+                     1e6 * gamma[0], 1e6 * gamma[1], ratio(gamma),
                      1e6 * a["max_interpenetration_m"], 1e6 * b["max_interpenetration_m"]))
     print()
     for sweeps in sweeps_list:

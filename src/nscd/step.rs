@@ -439,10 +439,11 @@ impl MoreauJean {
             if !self.carried.contains(&c.key) {
                 max_pen = max_pen.max(-c.gap);
                 if r[0] > 0.0 {
-                    pen_sum += (-c.gap).max(0.0);
+                    let overlap = (-c.gap).max(0.0);
+                    pen_sum += overlap;
                     active += 1;
                     if interface.contains(&k) {
-                        interface_pen_sum += (-c.gap).max(0.0);
+                        interface_pen_sum += overlap;
                         interface_active += 1;
                     }
                 }
