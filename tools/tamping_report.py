@@ -36,8 +36,9 @@
       stopped at T s (0.12), before the tines reach the ballast (checked: no tine force),
       for each number of DDM iterations a step; per bed the mean overlap over the
       pushing contacts and over the interface's (residuals.csv, last step), and the
-      asynchronous-to-synchronous ratio. The asynchronous driver's mass splitting
-      relaxes the grains the interface shares (docs/tamping.md).
+      asynchronous-to-synchronous ratio, the deepest pair, the most kinetic energy and
+      the largest energy rise in a step (a bed at rest has little of either). The asynchronous
+      driver's mass splitting relaxes the grains the interface shares (docs/tamping.md).
   tamping_report.py ensemble --pack BIN --nscd BIN --seeds N --out DIR
       the asynchronous driver against the synchronous one over N quick beds (seeds 1
       to N of `ballast-pack --preset quick`): each bed is tamped with both drivers
@@ -467,16 +468,17 @@ def creep(pack, nscd, seeds, out, until, sweeps_list):
     print("\n## Interpenetration at rest: the quick beds under gravity for %s s "
           "(the tines in the air, no lift), 2 slabs\n" % until)
     print("| bed seed | DDM iterations a step | mean overlap, pushing contacts: sync / async (µm) "
-          "| async / sync | on the interface: sync / async (µm) | async / sync | deepest: sync / async (µm) |")
-    print("|---|---|---|---|---|---|---|")
+          "| async / sync | on the interface: sync / async (µm) | async / sync | deepest: sync / async (µm) "
+          "| most kinetic energy: sync / async (J) | largest energy rise in a step: sync / async (J) |")
+    print("|---|---|---|---|---|---|---|---|---|")
     ratios = {n: [] for n in sweeps_list}
     for seed in range(1, seeds + 1):
         packing, _ = ensemble_tools.pack_bed(pack, "quick", seed, out, "tamping_report")
         for sweeps in sweeps_list:
-            last = {}
+            last, figures = {}, {}
             for driver in drivers:
                 directory = os.path.join(out, "creep-%d-%s-%d" % (seed, driver, sweeps))
-                ensemble_tools.run_once(
+                figures[driver] = ensemble_tools.run_once(
                     [nscd, SCENE, "--preset", "quick", "--threads", "2",
                      "--set", "packing.file=%s" % json.dumps(packing),
                      "--set", "ddm.driver=\"%s\"" % driver,
@@ -495,10 +497,11 @@ def creep(pack, nscd, seeds, out, until, sweeps_list):
                 ratios[sweeps].append(mean[1] / mean[0] - 1.0)
             gamma = [x["interface_mean_interpenetration_m"] for x in (a, b)]
             ratio = lambda x: "%.2f" % (x[1] / x[0]) if x[0] > 0 else "—"
-            print("| %d | %d | %.2f / %.2f | %s | %.2f / %.2f | %s | %.0f / %.0f |"
+            energy = [figures[d][k] for k in ("max_kinetic_energy_J", "max_energy_rise_J") for d in drivers]
+            print("| %d | %d | %.2f / %.2f | %s | %.2f / %.2f | %s | %.0f / %.0f | %.2g / %.2g | %.2g / %.2g |"
                   % (seed, sweeps, 1e6 * mean[0], 1e6 * mean[1], ratio(mean),
                      1e6 * gamma[0], 1e6 * gamma[1], ratio(gamma),
-                     1e6 * a["max_interpenetration_m"], 1e6 * b["max_interpenetration_m"]))
+                     1e6 * a["max_interpenetration_m"], 1e6 * b["max_interpenetration_m"], *energy))
     print()
     for sweeps in sweeps_list:
         print("%d iterations: asynchronous against synchronous mean overlap, %s"
