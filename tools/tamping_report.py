@@ -36,9 +36,10 @@
       stopped at T s (0.12), before the tines reach the ballast (checked: no tine force),
       for each number of DDM iterations a step; per bed the mean overlap over the
       pushing contacts and over the interface's (residuals.csv, last step), and the
-      asynchronous-to-synchronous ratio, the deepest pair, the most kinetic energy and
-      the largest energy rise in a step (a bed at rest has little of either). The asynchronous
-      driver's mass splitting relaxes the grains the interface shares (docs/tamping.md).
+      asynchronous-to-synchronous ratio, the deepest pair at the end, the most kinetic
+      energy and the largest energy rise in a step (a bed at rest has little of either).
+      The asynchronous driver's mass splitting relaxes the grains the interface shares
+      (docs/tamping.md).
   tamping_report.py ensemble --pack BIN --nscd BIN --seeds N --out DIR
       the asynchronous driver against the synchronous one over N quick beds (seeds 1
       to N of `ballast-pack --preset quick`): each bed is tamped with both drivers
@@ -468,7 +469,7 @@ def creep(pack, nscd, seeds, out, until, sweeps_list):
     print("\n## Interpenetration at rest: the quick beds under gravity for %s s "
           "(the tines in the air, no lift), 2 slabs\n" % until)
     print("| bed seed | DDM iterations a step | mean overlap, pushing contacts: sync / async (µm) "
-          "| async / sync | on the interface: sync / async (µm) | async / sync | deepest: sync / async (µm) "
+          "| async / sync | on the interface: sync / async (µm) | async / sync | deepest at the end: sync / async (µm) "
           "| most kinetic energy: sync / async (J) | largest energy rise in a step: sync / async (J) |")
     print("|---|---|---|---|---|---|---|---|---|")
     ratios = {n: [] for n in sweeps_list}
