@@ -491,9 +491,9 @@ impl MoreauJean {
     /// Clears, for the next step's warm start, the impulse of every contact of a grain
     /// the interface shares with a subdomain that pushes (r_n > 0) while it opens at
     /// more than [`OPENING_PUSH_SPEED`] by the end of the step (predicted gap rate
-    /// u_n + g/h, with this step's solved velocities). The
-    /// contact law gives such a contact no impulse; a solve stopped before it converged
-    /// can leave one, and carried into the next step it does work again. The
+    /// u_n + g/h, with this step's solved velocities). The contact law gives such a
+    /// contact no impulse; a solve stopped before it converged can leave one, and
+    /// carried into the next step it does work again. The
     /// asynchronous driver's mass splitting left such impulses at a grain the interface
     /// shares and grew them step after step through the warm start, until a stone was
     /// thrown out of a bed at rest (docs/tamping.md, "Interpenetration of the
