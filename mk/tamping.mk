@@ -34,22 +34,23 @@ bench-tamping: results/bed-$(TAMPING_BENCH_PRESET)/summary.json meshes/tine.msh 
 	  --out results/bench-tamping-$(TAMPING_BENCH_PRESET) \
 	  | tee results/bench-tamping-$(TAMPING_BENCH_PRESET).md
 
+# The studies over the quick beds of seeds 1..N (results/tamping-ensemble, beds shared):
+# `tamping_report.py $(1)` over $(2) beds, its tables into results/tamping-$(1).md.
+TAMPING_STUDY_INPUTS := scenes/tamping.toml scenes/bed.toml $(STONE_MESHES) meshes/tine.msh
+tamping_study = $(PY) tools/tamping_report.py $(1) --pack $(RELEASE)/ballast-pack \
+	  --nscd $(RELEASE)/ballast-nscd --seeds $(2) --out results/tamping-ensemble \
+	  | tee results/tamping-$(1).md
+
 ## The asynchronous driver against the synchronous one over TAMPING_ENSEMBLE_SEEDS quick
 ## beds (one tamping cycle each; about 2 min per bed on 2 cores, not in tests):
 ## issue #7's "within 2 %" as a comparison of means, since one cycle is chaotic.
 TAMPING_ENSEMBLE_SEEDS ?= 6
-.PHONY: tamping-ensemble
-tamping-ensemble: scenes/tamping.toml scenes/bed.toml $(STONE_MESHES) meshes/tine.msh | $(RELEASE)/ballast-pack $(RELEASE)/ballast-nscd $(VENV_STAMP)
-	$(PY) tools/tamping_report.py ensemble --pack $(RELEASE)/ballast-pack --nscd $(RELEASE)/ballast-nscd \
-	  --seeds $(TAMPING_ENSEMBLE_SEEDS) --out results/tamping-ensemble \
-	  | tee results/tamping-ensemble.md
-
 ## The two drivers' interpenetration in a bed at rest (the quick beds of the ensemble,
 ## the tines in the air, no lift; 50 and 100 DDM iterations a step): where the
 ## asynchronous driver's larger overlap comes from. About 1 min a bed on 2 cores.
 TAMPING_CREEP_SEEDS ?= 3
-.PHONY: tamping-creep
-tamping-creep: scenes/tamping.toml scenes/bed.toml $(STONE_MESHES) meshes/tine.msh | $(RELEASE)/ballast-pack $(RELEASE)/ballast-nscd $(VENV_STAMP)
-	$(PY) tools/tamping_report.py creep --pack $(RELEASE)/ballast-pack --nscd $(RELEASE)/ballast-nscd \
-	  --seeds $(TAMPING_CREEP_SEEDS) --out results/tamping-ensemble \
-	  | tee results/tamping-creep.md
+.PHONY: tamping-ensemble tamping-creep
+tamping-ensemble: $(TAMPING_STUDY_INPUTS) | $(RELEASE)/ballast-pack $(RELEASE)/ballast-nscd $(VENV_STAMP)
+	$(call tamping_study,ensemble,$(TAMPING_ENSEMBLE_SEEDS))
+tamping-creep: $(TAMPING_STUDY_INPUTS) | $(RELEASE)/ballast-pack $(RELEASE)/ballast-nscd $(VENV_STAMP)
+	$(call tamping_study,creep,$(TAMPING_CREEP_SEEDS))

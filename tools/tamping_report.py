@@ -18,8 +18,9 @@
       2 %; the seed: 1.7 %), and versions 5 against 4 in the layout of the seed's Table
       2 (the parallel part's speedup; issue #7: at least 85 % on 2 threads). With
       --repeat R the versions run R times in turn and every wall time is the median of
-      its R runs (the runs of one version give the same results, bit for bit). With one run per version the bench survives being
-      stopped: each version's directory keeps the command and the hashes of the
+      its R runs (the runs of one version give the same results, bit for bit). With one
+      run per version the bench survives being stopped: each version's directory keeps
+      the command and the hashes of the
       binary, the scene and the bed it ran with, a finished version is reused and a
       killed one resumed from its checkpoint (written every 100 steps) when all are
       unchanged; the summary's wall times then add up the pieces (`pieces` says how
@@ -405,6 +406,18 @@ def table(out):
     print_tables(runs, first["preset"], first["figures"]["steps"], note)
 
 
+def quick_tamping(nscd, packing, driver, *settings):
+    """The command of a quick tamping run (2 threads, no frames or checkpoints) on the
+    bed PACKING with DDM DRIVER and further `--set` SETTINGS (the ensemble studies)."""
+    cmd = [nscd, SCENE, "--preset", "quick", "--threads", "2",
+           "--set", "packing.file=%s" % json.dumps(packing),
+           "--set", "ddm.driver=\"%s\"" % driver,
+           "--set", "output.frames=0", "--set", "output.checkpoint_every=0"]
+    for setting in settings:
+        cmd += ["--set", setting]
+    return cmd
+
+
 def ensemble(pack, nscd, seeds, out):
     os.makedirs(out, exist_ok=True)
     drivers = ("synchronous", "asynchronous")
@@ -414,10 +427,7 @@ def ensemble(pack, nscd, seeds, out):
         figures = {}
         for driver in drivers:
             figures[driver] = ensemble_tools.run_once(
-                [nscd, SCENE, "--preset", "quick", "--threads", "2",
-                 "--set", "packing.file=%s" % json.dumps(packing),
-                 "--set", "ddm.driver=\"%s\"" % driver,
-                 "--set", "output.frames=0", "--set", "output.checkpoint_every=0"],
+                quick_tamping(nscd, packing, driver),
                 os.path.join(out, "tamping-%d-%s" % (seed, driver)), "tamping_report",
                 "seed %d, %s" % (seed, driver))
         rows.append((seed, bed_figures, figures))
@@ -452,12 +462,9 @@ def last_residuals(directory):
 
 def tines_touched(directory):
     """Whether any tine felt a force in DIRECTORY/tamping.csv."""
-    with open(os.path.join(directory, "tamping.csv")) as f:
-        for row in csv.DictReader(f):
-            if any(float(v) != 0.0 for k, v in row.items()
-                   if k.startswith("tine_") and re.search(r"_f[xyz]_N$", k)):
-                return True
-    return False
+    _, rows = load(directory)
+    forces = [k for k in rows[0] if k.startswith("tine_") and re.search(r"_f[xyz]_N$", k)]
+    return any(row[k] != 0.0 for row in rows for k in forces)
 
 
 def creep(pack, nscd, seeds, out, until, sweeps_list):
@@ -480,13 +487,8 @@ def creep(pack, nscd, seeds, out, until, sweeps_list):
             for driver in drivers:
                 directory = os.path.join(out, "creep-%d-%s-%d" % (seed, driver, sweeps))
                 figures[driver] = ensemble_tools.run_once(
-                    [nscd, SCENE, "--preset", "quick", "--threads", "2",
-                     "--set", "packing.file=%s" % json.dumps(packing),
-                     "--set", "ddm.driver=\"%s\"" % driver,
-                     "--set", "solver.sweeps=%d" % sweeps,
-                     "--set", "time.duration=\"%s s\"" % until,
-                     "--set", "tamping.lift=\"0 mm\"",
-                     "--set", "output.frames=0", "--set", "output.checkpoint_every=0"],
+                    quick_tamping(nscd, packing, driver, "solver.sweeps=%d" % sweeps,
+                                  "time.duration=\"%s s\"" % until, "tamping.lift=\"0 mm\""),
                     directory, "tamping_report", "creep: seed %d, %s, %d sweeps" % (seed, driver, sweeps))
                 if tines_touched(directory):
                     sys.exit("tamping_report: %s: a tine touched the ballast before %s s; "

@@ -416,11 +416,8 @@ impl MoreauJean {
         let mut max_pen: f64 = 0.0;
         let (mut pen_sum, mut active) = (0.0, 0usize);
         let (mut interface_pen_sum, mut interface_active) = (0.0, 0usize);
-        let interface = if self.ddm.is_some() {
-            self.decomposition.interface.clone()
-        } else {
-            0..0
-        };
+        // Empty without a DDM (the decomposition is only set with one).
+        let interface = self.decomposition.interface.clone();
         let mut max_normal: f64 = 0.0;
         self.solved.clear();
         for (k, ((c, row), r)) in
@@ -502,8 +499,8 @@ impl MoreauJean {
     /// grains are where the driver leaves such impulses. This step's velocities and
     /// outputs keep the impulses.
     fn drop_opening_pushes(&mut self) {
-        // The grains the interface shares with a subdomain (the mass-split ones; walls,
-        // tools and held bodies are not split).
+        // The moving bodies the interface touches (the mass-split grains are among them;
+        // walls, tools and held bodies are not split).
         let mut shared = vec![false; self.velocity.len()];
         for row in &self.rows[self.decomposition.interface.clone()] {
             for b in row.bodies.map(|x| x as usize) {
