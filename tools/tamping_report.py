@@ -4,6 +4,7 @@
       compactness per control box, tine travel and squeezing forces against time,
       from DIR/tamping.csv and DIR/summary.json, the phases shaded.
   tamping_report.py bench --nscd BIN --preset P --steps N --out DIR [--repeat R] [--fresh 1]
+                    [--versions 1,2,3,4,5]
       runs scenes/tamping.toml --preset P for its first N steps in the three versions
       of the seed's Table 3 (1: no DDM, 1 thread; 2: synchronous DDM, 2 threads;
       3: asynchronous DDM, 2 threads), and a fourth beyond the seed's table (4: the
@@ -27,7 +28,9 @@
       many). Such a bench runs a copy of the binary frozen in DIR when it first
       started (DIR/bench-binary.json says which commit), so that rebuilding the
       project between pieces does not restart hours of runs; --fresh drops the copy
-      and every version and starts over with BIN.
+      and every version and starts over with BIN. --versions runs only those versions,
+      in that order (e.g. 4,5 for the parallel part alone); the others' directories are
+      left as they are, and the tables show the versions that ran.
   tamping_report.py table DIR
       the same tables from the versions finished so far in a bench directory DIR
       (e.g. results/bench-tamping-table3), while the bench runs or after it stopped.
@@ -262,11 +265,23 @@ def run_version(cmd, directory, inputs, resumable):
     subprocess.run(cmd + ["--out", directory], check=True, stdout=subprocess.DEVNULL)
 
 
-def bench(nscd, preset, steps, out, repeat=1, fresh=False):
+def parse_versions(text):
+    """The bench's --versions list ("4,5"): known versions, each once, in the order given."""
+    try:
+        versions = [int(v) for v in text.split(",")]
+    except ValueError:
+        versions = []
+    if not versions or any(v not in VERSIONS for v in versions) or len(set(versions)) != len(versions):
+        sys.exit("tamping_report: --versions %r: expected distinct versions from %s, comma-separated"
+                 % (text, ",".join(str(v) for v in VERSIONS)))
+    return versions
+
+
+def bench(nscd, preset, steps, out, repeat=1, fresh=False, versions=tuple(VERSIONS)):
     # A stopped bench (SIGTERM) still removes its scene copy and leaves its runs to resume.
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
     os.makedirs(out, exist_ok=True)
-    runs = {v: [] for v in VERSIONS}
+    runs = {v: [] for v in versions}
     resumable = repeat == 1
     if resumable:
         nscd, nscd_sha256, note = frozen_binary(nscd, out, fresh)
@@ -285,7 +300,8 @@ def bench(nscd, preset, steps, out, repeat=1, fresh=False):
         dt = read_summary(probe)["figures"]["dt_s"]
     # The versions in turn, so that a slow spell of the machine hits them alike.
     for r in range(repeat):
-        for version, (name, driver, threads, balanced) in VERSIONS.items():
+        for version in versions:
+            name, driver, threads, balanced = VERSIONS[version]
             d = os.path.join(out, "version-%d" % version)
             scene = balanced_scene(balanced) if balanced else SCENE
             cmd = [nscd, scene, "--preset", preset,
@@ -305,17 +321,20 @@ def bench(nscd, preset, steps, out, repeat=1, fresh=False):
 
 def print_tables(runs, preset, steps, note, repeat=1):
     """Prints the bench's tables (Table 3 layout, Table 2 speedups, the versions'
-    physics) from `runs` (version -> its runs' summaries); versions without runs are
-    left out, and the speedups need version 1."""
+    physics) from `runs` (version -> its runs' summaries, the versions asked for);
+    versions without runs are left out, and the speedups need version 1."""
     done = [v for v in VERSIONS if runs.get(v)]
     times = {v: median_times(runs[v]) for v in done}
     results = {v: runs[v][-1] for v in done}
     print("\n## Table 3 layout: %s preset, %d steps (minutes, %s; seed's in brackets)\n"
           % (preset, steps, "one run" if repeat == 1 else "medians of %d runs" % repeat))
     print("tamping_report: %s\n" % note)
-    missing = [v for v in VERSIONS if v not in done]
+    missing = [v for v in VERSIONS if v in runs and v not in done]
     if missing:
         print("not finished yet: %s\n" % ", ".join("version %d" % v for v in missing))
+    skipped = [v for v in VERSIONS if v not in runs]
+    if skipped:
+        print("not run in this bench: %s\n" % ", ".join("version %d" % v for v in skipped))
     print("| | " + " | ".join("version %d: %s" % (v, VERSIONS[v][0]) for v in done) + " |")
     print("|---|" + "---|" * len(done))
     rows = [("cores", None), ("total", "total"), ("contact detection", "detect"),
@@ -389,14 +408,14 @@ def print_tables(runs, preset, steps, note, repeat=1):
 def table(out):
     """The tables of a bench directory's finished versions (those with a summary.json),
     for a bench still running or stopped part way."""
-    runs = {}
+    runs = {v: [] for v in VERSIONS}
     for v in VERSIONS:
         d = os.path.join(out, "version-%d" % v)
         if os.path.exists(os.path.join(d, "summary.json")):
             runs[v] = [read_summary(d)]
-    if not runs:
+    if not any(runs.values()):
         sys.exit("tamping_report: %s: no finished version (no version-N/summary.json)" % out)
-    first = next(iter(runs.values()))[0]
+    first = next(r for r in runs.values() if r)[0]
     try:
         with open(os.path.join(out, "bench-binary.json")) as f:
             stamp = json.load(f)
@@ -519,7 +538,8 @@ def main(argv):
         opts = dict(zip(argv[1::2], argv[2::2]))
         bench(opts["--nscd"], opts.get("--preset", "table3"), int(opts.get("--steps", "2272")),
               opts.get("--out", "results/bench-tamping"), int(opts.get("--repeat", "1")),
-              opts.get("--fresh", "0") == "1")
+              opts.get("--fresh", "0") == "1",
+              parse_versions(opts.get("--versions", ",".join(str(v) for v in VERSIONS))))
         return 0
     if len(argv) == 2 and argv[0] == "table":
         table(argv[1])
