@@ -302,7 +302,8 @@ fn under_the_sleepers_the_bulk_is_in_the_published_band_below_a_loose_band() {
     // Waters 1994; Indraratna et al. 2011), issue #6's acceptance. Taken over both
     // boxes: one box's bulk, two stones high, is a sample of about forty stones whose
     // spread from bed to bed is 0.016 (26 boxes, docs/pack.md), so a single box may sit
-    // just outside the band's edge (0.549 under this bed's second sleeper).
+    // just outside the band's edge (0.549 under the second sleeper of the quick bed
+    // packed on 2026-12-05 after the narrow-phase fix).
     let layer = bulks.iter().sum::<f64>() / bulks.len() as f64;
     assert!(
         (0.55..=0.65).contains(&layer),

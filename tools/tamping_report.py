@@ -302,7 +302,7 @@ def bench(nscd, preset, steps, out, repeat=1, fresh=False, versions=tuple(VERSIO
     # The versions in turn, so that a slow spell of the machine hits them alike.
     for r in range(repeat):
         for version in versions:
-            name, driver, threads, balanced = VERSIONS[version]
+            _, driver, threads, balanced = VERSIONS[version]
             d = os.path.join(out, "version-%d" % version)
             scene = balanced_scene(balanced) if balanced else SCENE
             cmd = [nscd, scene, "--preset", preset,
