@@ -264,12 +264,11 @@ fn convex_convex_contacts(
     // Edge–edge crossings, each with its own normal (a tumbling stone's edge across
     // another's ridge or rim; two edges across one edge are two points).
     // A crossing below the other edge is an overlap only if each point is inside the
-    // other body (far from the edges' wedges it is a far-side pair).
-    // The crossing whose axis is the pair's own separating-axis answer is the overlap
-    // itself (its edges are the support features along that axis, EPA's depth), even
-    // where a point lies just outside a third face next to the other edge's end: near
-    // a sharp corner a 1.2 mm crossing had one point 1.8 µm outside, and the pair was
-    // reported 0.66 mm apart while its stones sank into each other (quick bed 11).
+    // other body (far from the edges' wedges it is a far-side pair), or if its axis is
+    // the pair's separating-axis answer: then its edges are the support features along
+    // that axis (EPA's depth), even where a point lies just outside a third face next
+    // to the other edge's end (a 1.2 mm crossing with one point 1.8 µm outside was
+    // dropped, and the pair reported 0.66 mm apart while its stones sank together).
     let pos21 = pos12.inverse();
     out.extend(edges.into_iter().filter(|c| {
         c.gap >= floor
