@@ -266,6 +266,15 @@ pub fn run_with(ctx: &RunContext, resume: bool) -> Result<()> {
         if pipeline.ddm.is_some() {
             timer.add("solve: subdomains (parallel)", report.solve_split[0]);
             timer.add("solve: interface (sequential)", report.solve_split[1]);
+            let subdomains = pipeline.decomposition().subdomains.len();
+            for (k, busy) in pipeline.block_busy().iter().enumerate() {
+                let name = if k < subdomains {
+                    format!("solve: subdomain {} sweeps", k + 1)
+                } else {
+                    "solve: interface block sweeps".to_string()
+                };
+                timer.add(&name, *busy);
+            }
         }
         stats.record(&report, &bodies, &initial);
         stats.record_deepest(time, pipeline.contacts());

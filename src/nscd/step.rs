@@ -205,6 +205,8 @@ pub struct MoreauJean {
     /// The share of its last impulse each contact starts the step from
     /// ([`Self::set_warm_start`]).
     warm_start: f64,
+    /// Each DDM block's sweeping time in the last step ([`Self::block_busy`]).
+    block_busy: Vec<Duration>,
 }
 
 impl MoreauJean {
@@ -228,6 +230,7 @@ impl MoreauJean {
             solved: Vec::new(),
             carried: HashSet::new(),
             warm_start: 1.0,
+            block_busy: Vec::new(),
         }
     }
 
@@ -248,6 +251,19 @@ impl MoreauJean {
     /// The contacts of the last step with their impulses.
     pub fn contacts(&self) -> &[SolvedContact] {
         &self.solved
+    }
+
+    /// Each DDM block's own sweeping time in the last step (the subdomains in order,
+    /// then the asynchronous driver's interface block; empty without a DDM), summed
+    /// over the step's solves: [`ddm::DdmReport::block_busy`].
+    pub fn block_busy(&self) -> &[Duration] {
+        &self.block_busy
+    }
+
+    /// The last step's contacts numbered subdomain by subdomain, then the interface
+    /// (empty without a DDM).
+    pub fn decomposition(&self) -> &Decomposition {
+        &self.decomposition
     }
 
     /// Each body's subdomain in the last step (`None`: not a grain, or no DDM).
@@ -318,6 +334,7 @@ impl MoreauJean {
             bodies.iter().map(Body::angular_velocity_world).collect();
         let mut warm_started = 0;
         let mut solve_split = [Duration::ZERO; 2];
+        self.block_busy.clear();
         let mut interface_contacts = 0;
         let mut pass = 0;
         self.carried.clear();
@@ -358,6 +375,11 @@ impl MoreauJean {
                     );
                     solve_split[0] += report.subdomain_time;
                     solve_split[1] += report.interface_time;
+                    self.block_busy
+                        .resize(report.block_busy.len(), Duration::ZERO);
+                    for (total, t) in self.block_busy.iter_mut().zip(&report.block_busy) {
+                        *total += *t;
+                    }
                     interface_contacts = self.decomposition.interface.len();
                     report.nlgs
                 }
