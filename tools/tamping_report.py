@@ -174,7 +174,11 @@ def phase_times(summary):
     solve = w.get("solve", 0.0)
     sub = w.get("solve: subdomains (parallel)", 0.0)
     gamma = w.get("solve: interface (sequential)", 0.0)
+    # Each block's own sweep time (binaries from 2026-12-06 on), summed over the blocks.
+    busy = sum(t for k, t in w.items()
+               if k.startswith("solve: subdomain ") and k.endswith(" sweeps"))
     return {
+        "busy": busy,
         "total": total,
         "detect": detect,
         "solve": solve,
@@ -393,6 +397,13 @@ def print_tables(runs, preset, steps, note, repeat=1):
                            ("full stepping", "total")):
             speedup = t1[key] / t2[key]
             print("| %s | %.2f | %.1f %% |" % (label, speedup, 100 * speedup / threads))
+        if t1["busy"] > 0 and t2["busy"] > 0:
+            # speedup / threads = (alone / side by side) x (load balance) x (1-thread overhead).
+            print("\nthe parallel part's loss, split: the slabs' own sweeps took %.2f min on %d"
+                  " threads against %.2f min on 1 (%.1f %% of the speed alone); the threads were"
+                  " busy %.1f %% of the parallel part's wall time (load balance)"
+                  % (t2["busy"] / 60, VERSIONS[4][2], t1["busy"] / 60,
+                     100 * t1["busy"] / t2["busy"], 100 * t2["busy"] / (threads * t2["sub"])))
         same = all(results[5]["figures"][k] == results[4]["figures"][k]
                    for k in ("compactness_after", "max_interpenetration_m",
                              "final_mean_interpenetration_m"))
