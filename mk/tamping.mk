@@ -7,7 +7,9 @@
 # TAMPING_BENCH_REPEAT=R every version R times in turn (medians). With R = 1 a stopped
 # bench resumes: finished versions are reused, killed ones resumed, all with the binary
 # frozen when the bench first started; TAMPING_BENCH_FRESH=1 starts over with the current
-# build; TAMPING_BENCH_VERSIONS=4,5 runs only those versions (tools/tamping_report.py).
+# build; TAMPING_BENCH_VERSIONS=4,5 runs only those versions (tools/tamping_report.py);
+# with R = 1 the versions take turns of TAMPING_BENCH_INTERLEAVE steps (0: each to
+# its end in turn), so that the VM's drift hits them alike.
 # Included by the main Makefile, which defines PY, RELEASE, RUST_SOURCES, VENV_STAMP and
 # PACK_QUICK (mk/pack.mk).
 
@@ -18,6 +20,7 @@ TAMPING_BENCH_STEPS ?= 2272
 TAMPING_BENCH_REPEAT ?= 1
 TAMPING_BENCH_FRESH ?= 0
 TAMPING_BENCH_VERSIONS ?= 1,2,3,4,5
+TAMPING_BENCH_INTERLEAVE ?= 200
 
 .PHONY: tamping bench-tamping
 bench: bench-tamping
@@ -32,7 +35,7 @@ bench-tamping: results/bed-$(TAMPING_BENCH_PRESET)/summary.json meshes/tine.msh 
 	$(PY) tools/tamping_report.py bench --nscd $(RELEASE)/ballast-nscd \
 	  --preset $(TAMPING_BENCH_PRESET) --steps $(TAMPING_BENCH_STEPS) \
 	  --repeat $(TAMPING_BENCH_REPEAT) --fresh $(TAMPING_BENCH_FRESH) \
-	  --versions $(TAMPING_BENCH_VERSIONS) \
+	  --versions $(TAMPING_BENCH_VERSIONS) --interleave $(TAMPING_BENCH_INTERLEAVE) \
 	  --out results/bench-tamping-$(TAMPING_BENCH_PRESET) \
 	  | tee results/bench-tamping-$(TAMPING_BENCH_PRESET).md
 

@@ -1210,6 +1210,43 @@ fn a_killed_tamping_run_resumes_to_the_same_state() {
         );
         assert!(a == b, "{file} differs after the resume");
     }
+    // A run stopped by --stop-after (between checkpoints) and resumed ends the same.
+    let paused = work.path().join("paused");
+    let stopped = tamping_command(&paused, &short)
+        .args(["--stop-after", "150"])
+        .output()
+        .unwrap();
+    assert_success(&stopped);
+    assert!(String::from_utf8_lossy(&stopped.stdout).contains("stopped after step 150 of 375"));
+    assert!(
+        !paused.join("summary.json").exists(),
+        "no summary for a stopped run"
+    );
+    assert_eq!(clocks(&paused)["step"], 150);
+    let again = tamping_command(&paused, &short)
+        .arg("--resume")
+        .arg(&paused)
+        .output()
+        .unwrap();
+    assert_success(&again);
+    for file in [
+        "checkpoint.bin",
+        "residuals.csv",
+        "tamping.csv",
+        "grains.pvd",
+    ] {
+        let (a, b) = (
+            std::fs::read(whole.join(file)).unwrap(),
+            std::fs::read(paused.join(file)).unwrap(),
+        );
+        assert!(a == b, "{file} differs after --stop-after and --resume");
+    }
+    let behind = tamping_command(&paused, &short)
+        .args(["--stop-after", "150", "--resume"])
+        .arg(&paused)
+        .output()
+        .unwrap();
+    common::assert_one_line_error(&behind, 1, &["--stop-after 150", "step 375 already"]);
     // Resuming with other arguments is refused in one line.
     let other = tamping_command(&killed, &["--set", "time.duration=0.2"])
         .arg("--resume")

@@ -4,7 +4,7 @@
       compactness per control box, tine travel and squeezing forces against time,
       from DIR/tamping.csv and DIR/summary.json, the phases shaded.
   tamping_report.py bench --nscd BIN --preset P --steps N --out DIR [--repeat R] [--fresh 1]
-                    [--versions 1,2,3,4,5]
+                    [--versions 1,2,3,4,5] [--interleave K]
       runs scenes/tamping.toml --preset P for its first N steps in the three versions
       of the seed's Table 3 (1: no DDM, 1 thread; 2: synchronous DDM, 2 threads;
       3: asynchronous DDM, 2 threads), and a fourth beyond the seed's table (4: the
@@ -30,7 +30,11 @@
       project between pieces does not restart hours of runs; --fresh drops the copy
       and every version and starts over with BIN. --versions runs only those versions,
       in that order (e.g. 4,5 for the parallel part alone); the others' directories are
-      left as they are, and the tables show the versions that ran.
+      left as they are, and the tables show the versions that ran. --interleave K
+      (one run per version) runs the versions in turns of K steps (ballast-nscd
+      --stop-after, then --resume): this VM's speed drifts by ±15 % over an hour and
+      more over minutes, so versions run one after the other, an hour each, compare
+      the machine's moods as much as the versions (docs/tamping.md).
   tamping_report.py table DIR
       the same tables from the versions finished so far in a bench directory DIR
       (e.g. results/bench-tamping-table3), while the bench runs or after it stopped.
@@ -242,10 +246,12 @@ def packing_file(scene, preset):
     return os.path.join(os.path.dirname(scene), path)
 
 
-def run_version(cmd, directory, inputs, resumable):
+def run_version(cmd, directory, inputs, resumable, stop_after=None):
     """Runs `cmd` (without --out) into `directory`. With `resumable`, a finished run
     of the same command and inputs (hashes of the binary, scene and bed) there is
-    reused, and a killed one resumed from its checkpoint; anything else starts afresh."""
+    reused, and a killed or stopped one resumed from its checkpoint; anything else
+    starts afresh. With `stop_after`, the run stops after that step (its checkpoint
+    written); a run whose checkpoint is there already is left as it is."""
     stamp_path = os.path.join(directory, "bench-command.json")
     stamp = dict(command=cmd, **inputs)
     try:
@@ -254,12 +260,16 @@ def run_version(cmd, directory, inputs, resumable):
     except (OSError, ValueError):
         same = False
     summary = os.path.join(directory, "summary.json")
+    stop = [] if stop_after is None else ["--stop-after", str(stop_after)]
     if same and os.path.exists(summary):
         print("tamping_report: reusing", directory, file=sys.stderr, flush=True)
         return
     if same and os.path.exists(os.path.join(directory, "checkpoint.bin")):
+        if stop_after is not None and checkpoint_step(directory) >= stop_after:
+            return
         print("tamping_report: resuming", directory, file=sys.stderr, flush=True)
-        subprocess.run(cmd + ["--resume", directory], check=True, stdout=subprocess.DEVNULL)
+        subprocess.run(cmd + ["--resume", directory] + stop, check=True,
+                       stdout=subprocess.DEVNULL)
         return
     os.makedirs(directory, exist_ok=True)
     for stale in (summary, os.path.join(directory, "checkpoint.bin")):
@@ -267,7 +277,16 @@ def run_version(cmd, directory, inputs, resumable):
             os.remove(stale)
     with open(stamp_path, "w") as f:
         json.dump(stamp, f, indent=1)
-    subprocess.run(cmd + ["--out", directory], check=True, stdout=subprocess.DEVNULL)
+    subprocess.run(cmd + ["--out", directory] + stop, check=True, stdout=subprocess.DEVNULL)
+
+
+def checkpoint_step(directory):
+    """The step of the checkpoint in a run's directory (from its clocks; 0 if unread)."""
+    try:
+        with open(os.path.join(directory, "checkpoint-clocks.json")) as f:
+            return json.load(f)["step"]
+    except (OSError, ValueError, KeyError):
+        return 0
 
 
 def parse_versions(text):
@@ -282,7 +301,8 @@ def parse_versions(text):
     return versions
 
 
-def bench(nscd, preset, steps, out, repeat=1, fresh=False, versions=tuple(VERSIONS)):
+def bench(nscd, preset, steps, out, repeat=1, fresh=False, versions=tuple(VERSIONS),
+          interleave=0):
     # A stopped bench (SIGTERM) still removes its scene copy and leaves its runs to resume.
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
     os.makedirs(out, exist_ok=True)
@@ -303,8 +323,10 @@ def bench(nscd, preset, steps, out, repeat=1, fresh=False, versions=tuple(VERSIO
                         "--set", "time.duration=1e-9"],
                        check=True, stdout=subprocess.DEVNULL)
         dt = read_summary(probe)["figures"]["dt_s"]
-    # The versions in turn, so that a slow spell of the machine hits them alike.
-    for r in range(repeat):
+    # The versions in turn, so that a slow spell of the machine hits them alike; with
+    # `interleave`, in turns of that many steps (each version stopped and resumed).
+    pieces = range(interleave, steps, interleave) if interleave > 0 and resumable else []
+    for r, stop_after in [(0, end) for end in pieces] + [(r, None) for r in range(repeat)]:
         for version in versions:
             _, driver, threads, balanced = VERSIONS[version]
             d = os.path.join(out, "version-%d" % version)
@@ -313,14 +335,16 @@ def bench(nscd, preset, steps, out, repeat=1, fresh=False, versions=tuple(VERSIO
                    "--threads", str(threads), "--set", "ddm.driver=\"%s\"" % driver,
                    "--set", "output.frames=2", "--set", "output.checkpoint_every=100",
                    "--set", "time.duration=%r" % (steps * dt)]
-            print("tamping_report: run %d/%d:" % (r + 1, repeat), " ".join(cmd), "into", d,
-                  file=sys.stderr, flush=True)
+            print("tamping_report: run %d/%d%s:" % (r + 1, repeat, "" if stop_after is None
+                                                     else " to step %d" % stop_after),
+                  " ".join(cmd), "into", d, file=sys.stderr, flush=True)
             try:
-                run_version(cmd, d, inputs, resumable)
+                run_version(cmd, d, inputs, resumable, stop_after)
             finally:
                 if scene != SCENE:
                     os.remove(scene)
-            runs[version].append(read_summary(d))
+            if stop_after is None:
+                runs[version].append(read_summary(d))
     print_tables(runs, preset, steps, note, repeat)
 
 
@@ -561,7 +585,8 @@ def main(argv):
         bench(opts["--nscd"], opts.get("--preset", "table3"), int(opts.get("--steps", "2272")),
               opts.get("--out", "results/bench-tamping"), int(opts.get("--repeat", "1")),
               opts.get("--fresh", "0") == "1",
-              parse_versions(opts.get("--versions", ",".join(str(v) for v in VERSIONS))))
+              parse_versions(opts.get("--versions", ",".join(str(v) for v in VERSIONS))),
+              int(opts.get("--interleave", "0")))
         return 0
     if len(argv) == 2 and argv[0] == "table":
         table(argv[1])

@@ -49,6 +49,11 @@ pub struct NscdCli {
     /// killed run's scene, --preset and --set again; implies --out DIR).
     #[arg(long, value_name = "DIR")]
     resume: Option<PathBuf>,
+    /// Stop after step STEP once its checkpoint is written, without the summary:
+    /// --resume continues the run. Benches use it to run versions in turns of a few
+    /// hundred steps, so that the machine's slow and fast spells hit them alike.
+    #[arg(long, value_name = "STEP")]
+    stop_after: Option<u64>,
 }
 
 /// Sub-commands of `ballast-nscd` besides running a scene.
@@ -84,7 +89,7 @@ pub fn run_nscd(cli: NscdCli) -> crate::Result<()> {
         ) => super::fc3d::run(&file, tol, max_iter, json),
         (None, Some(run)) => {
             let (ctx, resume) = run.resumable_context(cli.resume.as_deref())?;
-            ctx.run_on_pool(|c| crate::nscd::run::run_with(c, resume))?
+            ctx.run_on_pool(|c| crate::nscd::run::run_with(c, resume, cli.stop_after))?
         }
         (None, None) => Err(crate::Error::Message(
             "ballast-nscd: give a SCENE.toml or a sub-command (see --help)".into(),

@@ -135,8 +135,6 @@ struct Block {
     stats: SweepStats,
     /// Time spent in its sweeps over the solve.
     busy: Duration,
-    /// Time its sweeps took in the last iteration (the cost [`Team`] orders by).
-    last: Duration,
 }
 
 impl Block {
@@ -151,7 +149,6 @@ impl Block {
             sweeps,
             stats: SweepStats::default(),
             busy: Duration::ZERO,
-            last: Duration::ZERO,
         }
     }
 
@@ -333,7 +330,7 @@ pub fn solve(
         .collect();
     let mut sums: Vec<BodyState> =
         vec![BodyState::default(); if asynchronous { state.len() } else { 0 }];
-    let team = Team::new(blocks.len());
+    let team = Team::new(&ranges.iter().map(Range::len).collect::<Vec<_>>());
     let helpers = rayon::current_num_threads()
         .min(blocks.len())
         .saturating_sub(1);
@@ -456,13 +453,16 @@ pub fn solve(
 /// thread sweeps every block no helper has taken: a helper that never starts (all
 /// workers busy) costs time, never progress.
 ///
-/// The blocks are claimed longest first (by their time in the previous iteration; in
-/// the first, by contact count): greedy in that order, no thread starts a long block
-/// after the others are done. Claimed in numbering order, 4 slabs on 2 threads gave one
-/// thread both end slabs; at mid-squeeze of the Table 3 case (slabs of 32 900, 26 200,
-/// 24 300 and 31 300 contact points) that makes 64 200 against 57 400 for the best
-/// split. Which thread sweeps a block does not change its result: the synchronous
-/// blocks touch disjoint grains, the asynchronous blocks their own copies.
+/// The blocks are claimed largest first (by contact count; the cost per contact was
+/// within ±6 % between the Table 3 case's four slabs at mid-squeeze), in the same order
+/// in every iteration, so a thread tends to sweep the same blocks and find their
+/// bodies in its cache. Claimed in numbering order instead, 4 slabs on 2 threads gave
+/// one thread both end slabs: at mid-squeeze of the Table 3 case (32 900, 26 200,
+/// 24 300 and 31 300 contact points) 64 200 points against 57 400 for the best split.
+/// Ordered by each block's time in the previous iteration, the balance was better but
+/// the blocks changed threads and swept 4 % slower (docs/tamping.md). Which thread
+/// sweeps a block does not change its result: the synchronous blocks touch disjoint
+/// grains, the asynchronous blocks their own copies.
 struct Team {
     /// Incremented by the main thread to start an iteration.
     epoch: AtomicUsize,
@@ -477,39 +477,24 @@ struct Team {
     view: AtomicPtr<BodyState>,
     view_len: AtomicUsize,
     blocks: usize,
-    /// The blocks in the order this iteration claims them, published by the epoch's
-    /// increment.
-    order: Vec<AtomicUsize>,
+    /// The blocks in the order they are claimed.
+    order: Vec<usize>,
 }
 
 impl Team {
-    fn new(blocks: usize) -> Self {
+    /// A team for blocks of `sizes` contacts, claimed largest first (ties by number).
+    fn new(sizes: &[usize]) -> Self {
+        let mut order: Vec<usize> = (0..sizes.len()).collect();
+        order.sort_by_key(|&k| std::cmp::Reverse(sizes[k]));
         Team {
             epoch: AtomicUsize::new(0),
-            next: AtomicUsize::new(blocks),
+            next: AtomicUsize::new(sizes.len()),
             completed: AtomicUsize::new(0),
             stopped: AtomicBool::new(false),
             view: AtomicPtr::new(std::ptr::null_mut()),
             view_len: AtomicUsize::new(0),
-            blocks,
-            order: (0..blocks).map(AtomicUsize::new).collect(),
-        }
-    }
-
-    /// Orders the blocks longest first for the next iteration: by their last
-    /// iteration's time, then their contact count, then their number.
-    fn schedule(&self, blocks: &[Mutex<Block>]) {
-        let mut cost: Vec<(Duration, usize, usize)> = blocks
-            .iter()
-            .enumerate()
-            .map(|(k, b)| {
-                let b = b.lock().expect("a block not poisoned");
-                (b.last, b.range.len(), k)
-            })
-            .collect();
-        cost.sort_by(|a, b| (b.0, b.1).cmp(&(a.0, a.1)).then(a.2.cmp(&b.2)));
-        for (slot, (_, _, k)) in self.order.iter().zip(cost) {
-            slot.store(k, Ordering::Relaxed);
+            blocks: sizes.len(),
+            order,
         }
     }
 
@@ -520,7 +505,7 @@ impl Team {
             if k >= self.blocks {
                 return;
             }
-            let k = self.order[k].load(Ordering::Relaxed);
+            let k = self.order[k];
             let mut block = blocks[k].lock().expect("a block not poisoned");
             // SAFETY: the blocks of the synchronous driver are the subdomains, whose
             // contacts move only their own grains and read only those and bodies that
@@ -529,9 +514,7 @@ impl Team {
             // waits for every block of the iteration.
             let clock = Instant::now();
             unsafe { block.sweep(contacts, view) };
-            let took = clock.elapsed();
-            block.last = took;
-            block.busy += took;
+            block.busy += clock.elapsed();
             drop(block);
             self.completed.fetch_add(1, Ordering::AcqRel);
         }
@@ -540,7 +523,6 @@ impl Team {
     /// The main thread: one iteration's block sweeps, with whoever helps, on `view` for
     /// blocks without their own velocities.
     fn iterate(&self, blocks: &[Mutex<Block>], contacts: &Sweepable, view: Option<Bodies<'_>>) {
-        self.schedule(blocks);
         let (ptr, len) = view.map_or((std::ptr::null_mut(), 0), |v| v.raw());
         self.view.store(ptr, Ordering::Relaxed);
         self.view_len.store(len, Ordering::Relaxed);
@@ -756,28 +738,9 @@ mod tests {
     }
 
     #[test]
-    fn blocks_are_claimed_longest_first() {
-        let impulse = vec![[0.0; 3]; 10];
-        let blocks: Vec<Mutex<Block>> = [0..3, 3..4, 4..10, 10..10]
-            .into_iter()
-            .map(|r| Mutex::new(Block::shared(r, &impulse, 1)))
-            .collect();
-        let team = Team::new(blocks.len());
-        let order = |team: &Team| -> Vec<usize> {
-            team.order
-                .iter()
-                .map(|k| k.load(Ordering::Relaxed))
-                .collect()
-        };
-        // First iteration: by contact count.
-        team.schedule(&blocks);
-        assert_eq!(order(&team), [2, 0, 1, 3]);
-        // Then by the last iteration's time, the count breaking ties.
-        for (b, ms) in blocks.iter().zip([5, 7, 1, 5]) {
-            b.lock().unwrap().last = Duration::from_millis(ms);
-        }
-        team.schedule(&blocks);
-        assert_eq!(order(&team), [1, 0, 3, 2]);
+    fn blocks_are_claimed_largest_first() {
+        // Ties keep the numbering (a stable sort).
+        assert_eq!(Team::new(&[3, 1, 6, 0, 3]).order, [2, 0, 4, 1, 3]);
     }
 
     #[test]

@@ -36,7 +36,7 @@ use crate::{Error, Result};
 
 /// Runs the scene of `ctx` from the start.
 pub fn run(ctx: &RunContext) -> Result<()> {
-    run_with(ctx, false)
+    run_with(ctx, false, None)
 }
 
 /// What a checkpoint keeps of the run loop besides the bodies and the contacts.
@@ -50,8 +50,10 @@ struct LoopState {
 }
 
 /// Runs the scene of `ctx`; with `resume`, from the checkpoint in the output directory
-/// (written by a run of the same scene, preset and overrides).
-pub fn run_with(ctx: &RunContext, resume: bool) -> Result<()> {
+/// (written by a run of the same scene, preset and overrides). With `stop_after`, the
+/// run stops once the checkpoint of that step is written (no summary; a later
+/// `resume` goes on), unless the run ends first.
+pub fn run_with(ctx: &RunContext, resume: bool, stop_after: Option<u64>) -> Result<()> {
     let threads = ctx.configure_threads()?;
     crate::simd::requested_path().map_err(Error::Message)?;
     let mut timer = PhaseTimer::new();
@@ -76,6 +78,24 @@ pub fn run_with(ctx: &RunContext, resume: bool) -> Result<()> {
     };
     let dt = scene.time.dt.si();
     let steps = (scene.time.duration.si() / dt).round().max(1.0) as u64;
+    if let Some(stop) = stop_after {
+        if scene.output.checkpoint_every == 0 {
+            return Err(Error::Message(format!(
+                "{}: --stop-after {stop}: output.checkpoint_every is 0, so a stopped run \
+                 could not go on (set it above 0)",
+                ctx.scene_path.display()
+            )));
+        }
+        if let Some(c) = &resumed {
+            if stop <= c.step {
+                return Err(Error::Message(format!(
+                    "{}: --stop-after {stop}: the checkpoint is at step {} already",
+                    ctx.out_dir.display(),
+                    c.step
+                )));
+            }
+        }
+    }
     if let Some(plan) = &tamping {
         if steps as f64 * dt < plan.end() - 0.5 * dt {
             println!(
@@ -327,7 +347,8 @@ pub fn run_with(ctx: &RunContext, resume: bool) -> Result<()> {
             bar.set_position(step);
         }
         let every = scene.output.checkpoint_every;
-        if every > 0 && (step % every == 0 || step == steps) {
+        let stop_here = stop_after == Some(step) && step < steps;
+        if every > 0 && (step % every == 0 || step == steps || stop_here) {
             let clock = Instant::now();
             let state = LoopState {
                 stats: stats.clone(),
@@ -351,6 +372,15 @@ pub fn run_with(ctx: &RunContext, resume: bool) -> Result<()> {
             before
                 .then(step, stepping, frames_s, &timer)
                 .write(&ctx.out_dir)?;
+            if stop_here {
+                bar.finish_and_clear();
+                println!(
+                    "ballast-nscd: stopped after step {step} of {steps} (t = {time:.4} s), \
+                     checkpoint written; --resume {} goes on",
+                    ctx.out_dir.display()
+                );
+                return Ok(());
+            }
         }
         if !report.kinetic_energy.is_finite() {
             bar.abandon();
