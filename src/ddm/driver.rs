@@ -460,7 +460,7 @@ pub fn solve(
 /// one thread both end slabs: at mid-squeeze of the Table 3 case (32 900, 26 200,
 /// 24 300 and 31 300 contact points) 64 200 points against 57 400 for the best split.
 /// Ordered by each block's time in the previous iteration, the balance was better but
-/// the blocks changed threads and swept 4 % slower (docs/tamping.md). Which thread
+/// the blocks changed threads and swept 3–7 % slower (docs/tamping.md). Which thread
 /// sweeps a block does not change its result: the synchronous blocks touch disjoint
 /// grains, the asynchronous blocks their own copies.
 struct Team {
