@@ -32,9 +32,9 @@
       in that order (e.g. 4,5 for the parallel part alone); the others' directories are
       left as they are, and the tables show the versions that ran. --interleave K
       (one run per version) runs the versions in turns of K steps (ballast-nscd
-      --stop-after, then --resume): this VM's speed drifts by ±15 % over an hour and
-      more over minutes, so versions run one after the other, an hour each, compare
-      the machine's moods as much as the versions (docs/tamping.md).
+      --stop-after, then --resume): on this VM the same 100 steps, run again minutes
+      later, took up to 21-29 % longer, so versions run one after the other, an hour
+      each, compare the machine's spells as much as the versions (docs/tamping.md).
   tamping_report.py table DIR
       the same tables from the versions finished so far in a bench directory DIR
       (e.g. results/bench-tamping-table3), while the bench runs or after it stopped.
