@@ -1194,22 +1194,30 @@ fn a_killed_tamping_run_resumes_to_the_same_state() {
         assert!(summary["wall_time_s"]["solve"].as_f64().unwrap() > solve(&saved["phases"]));
     }
     assert_eq!(clocks(&killed)["pieces"], 2);
-    for file in [
-        "checkpoint.bin",
-        "residuals.csv",
-        "tamping.csv",
-        "grains.pvd",
-        "driven.pvd",
-        "contacts.pvd",
-        "frames/grains_0006.vtu",
-        "frames/contacts_0006.vtu",
-    ] {
-        let (a, b) = (
-            std::fs::read(whole.join(file)).unwrap(),
-            std::fs::read(killed.join(file)).unwrap(),
-        );
-        assert!(a == b, "{file} differs after the resume");
-    }
+    // `files` of `dir` byte for byte as the run left alone wrote them.
+    let same_as_whole = |dir: &Path, files: &[&str], after: &str| {
+        for file in files {
+            let (a, b) = (
+                std::fs::read(whole.join(file)).unwrap(),
+                std::fs::read(dir.join(file)).unwrap(),
+            );
+            assert!(a == b, "{file} differs after {after}");
+        }
+    };
+    same_as_whole(
+        &killed,
+        &[
+            "checkpoint.bin",
+            "residuals.csv",
+            "tamping.csv",
+            "grains.pvd",
+            "driven.pvd",
+            "contacts.pvd",
+            "frames/grains_0006.vtu",
+            "frames/contacts_0006.vtu",
+        ],
+        "the resume",
+    );
     // A run stopped by --stop-after (between checkpoints) and resumed ends the same.
     let paused = work.path().join("paused");
     let stopped = tamping_command(&paused, &short)
@@ -1229,18 +1237,16 @@ fn a_killed_tamping_run_resumes_to_the_same_state() {
         .output()
         .unwrap();
     assert_success(&again);
-    for file in [
-        "checkpoint.bin",
-        "residuals.csv",
-        "tamping.csv",
-        "grains.pvd",
-    ] {
-        let (a, b) = (
-            std::fs::read(whole.join(file)).unwrap(),
-            std::fs::read(paused.join(file)).unwrap(),
-        );
-        assert!(a == b, "{file} differs after --stop-after and --resume");
-    }
+    same_as_whole(
+        &paused,
+        &[
+            "checkpoint.bin",
+            "residuals.csv",
+            "tamping.csv",
+            "grains.pvd",
+        ],
+        "--stop-after and --resume",
+    );
     let behind = tamping_command(&paused, &short)
         .args(["--stop-after", "150", "--resume"])
         .arg(&paused)

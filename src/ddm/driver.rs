@@ -476,7 +476,6 @@ struct Team {
     /// epoch's increment.
     view: AtomicPtr<BodyState>,
     view_len: AtomicUsize,
-    blocks: usize,
     /// The blocks in the order they are claimed.
     order: Vec<usize>,
 }
@@ -493,7 +492,6 @@ impl Team {
             stopped: AtomicBool::new(false),
             view: AtomicPtr::new(std::ptr::null_mut()),
             view_len: AtomicUsize::new(0),
-            blocks: sizes.len(),
             order,
         }
     }
@@ -502,7 +500,7 @@ impl Team {
     fn claim(&self, blocks: &[Mutex<Block>], contacts: &Sweepable, view: Option<Bodies<'_>>) {
         loop {
             let k = self.next.fetch_add(1, Ordering::AcqRel);
-            if k >= self.blocks {
+            if k >= self.order.len() {
                 return;
             }
             let k = self.order[k];
@@ -531,7 +529,7 @@ impl Team {
         self.epoch.fetch_add(1, Ordering::AcqRel);
         self.claim(blocks, contacts, view);
         let mut spins = 0u32;
-        while self.completed.load(Ordering::Acquire) < self.blocks {
+        while self.completed.load(Ordering::Acquire) < self.order.len() {
             backoff(&mut spins);
         }
     }
