@@ -53,6 +53,7 @@ use nalgebra::{Isometry3, Point3, Translation3, Vector3};
 use serde::{Deserialize, Serialize};
 
 use super::profile::Profile;
+use super::tile::Laid;
 use crate::contact::ContactPoint;
 use crate::geometry::random::SplitMix;
 use crate::nscd::body::{Body, BodyShape, Motion, Prescribed};
@@ -842,6 +843,31 @@ impl Deposition {
             start_step: self.steps,
             report: None,
         };
+    }
+
+    /// Lays the bodies of a tiled bay into the empty container instead of raining
+    /// ([`super::tile`]): a stage without steps, whose report counts the stones laid
+    /// and, as `removed`, the copies left out at the end walls.
+    pub fn lay(&mut self, name: &str, laid: Laid) {
+        if !self.begin_stage() {
+            return;
+        }
+        let stones = laid.bodies.len() - laid.sleepers();
+        for (body, role) in laid.bodies {
+            self.bodies.push(body);
+            self.roles.push(role);
+        }
+        self.inserted += stones;
+        self.cursor.report = Some(PhaseReport {
+            name: name.to_string(),
+            time: 0.0,
+            steps: 0,
+            settled: true,
+            inserted: stones,
+            removed: laid.dropped,
+            sleeper_support: None,
+        });
+        self.end_stage();
     }
 
     /// Removes the stones whose mass centre is above `level`, or above the profile

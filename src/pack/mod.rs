@@ -12,6 +12,7 @@
 //! - [`contacts`]: the contact impulses written with it, for a warm restart;
 //! - [`recorder`]: what the run writes as it goes (CSV, frames, checkpoints);
 //! - [`resume`]: checkpoints, and the bed restored from one (`--resume DIR`);
+//! - [`tile`]: a long bed laid from one periodic bay's packing;
 //! - [`run`]: `ballast-pack SCENE.toml` (files and summary).
 
 pub mod contacts;
@@ -23,6 +24,7 @@ pub mod report;
 pub mod resume;
 pub mod run;
 pub mod scene;
+pub mod tile;
 
 pub use packing::{Packing, Placement};
 pub use scene::BedScene;

@@ -31,6 +31,7 @@ use super::report::{
 };
 use super::resume::{restore_from, PackCheckpoint};
 use super::scene::{BedScene, CompactionStage};
+use super::tile::{lay_bay, Laid, SceneSleeper, Target};
 use crate::ddm::Partitioning;
 use crate::geometry::{ControlBox, Period};
 use crate::nscd::body::{Body, BodyShape};
@@ -182,6 +183,71 @@ fn check_period(
         ));
     }
     Ok(())
+}
+
+/// The bay of `[tile]` read from `path` and laid along the bed ([`super::tile`]),
+/// with as many sleepers as the scene has.
+fn lay_tiles(
+    scene: &BedScene,
+    path: &Path,
+    setup: &DepositSetup,
+    sleeper: Option<&SleeperSource>,
+    first_sleeper: Option<f64>,
+    crib_top: f64,
+) -> Result<Laid> {
+    let bay = Packing::read(path)?;
+    if bay.settled == Some(false) {
+        println!(
+            "ballast-pack: the bay {} did not settle (its last phase ran to its cap); the \
+             tiled bed starts from it as it is",
+            path.display()
+        );
+    }
+    let scene_sleeper = match (sleeper, &scene.sleepers, first_sleeper) {
+        (Some(source), Some(spec), Some(first)) => Some(SceneSleeper {
+            model: &source.model,
+            own_from_mesh: source.own_from_mesh,
+            inertia_scale: setup.sleeper_inertia_scale,
+            size: source.size,
+            mesh: source.mesh.as_deref(),
+            spacing: spec.spacing.si(),
+            first,
+        }),
+        _ => None,
+    };
+    let laid = lay_bay(
+        &bay,
+        path,
+        &Target {
+            family: &setup.family,
+            stone: (setup.stone_density, setup.stone_material),
+            sleeper: scene_sleeper,
+            size: [setup.length, setup.width],
+            periodic: setup.params.period.is_some(),
+            crib_top,
+        },
+    )?;
+    let wanted = scene.sleepers.as_ref().map_or(0, |s| s.count);
+    if laid.sleepers() != wanted {
+        return Err(Error::invalid(
+            path,
+            format!(
+                "key tile.bay: laid along bed.length ({} m) the bay puts {} sleepers whole \
+                 in the bed, the scene has {wanted} (sleepers.count)",
+                setup.length,
+                laid.sleepers()
+            ),
+        ));
+    }
+    println!(
+        "ballast-pack: tiled {} ({} stones a bay) into {} stones, {} copies left out at the \
+         end walls",
+        path.display(),
+        laid.bay_stones,
+        laid.bodies.len() - laid.sleepers(),
+        laid.dropped
+    );
+    Ok(laid)
 }
 
 fn friction_tables(scene: &BedScene) -> (FrictionTable, FrictionTable) {
@@ -351,6 +417,17 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
             .collect(),
         None => Vec::new(),
     };
+    let laid = match &scene.tile {
+        Some(tile) => Some(lay_tiles(
+            &scene,
+            &NscdScene::resolve(&ctx.scene_path, &tile.bay),
+            &setup,
+            sleeper.as_ref(),
+            nominal.first().map(|xy| xy[0]),
+            crib_top,
+        )?),
+        None => None,
+    };
     let mut bed = match &resumed {
         Some(c) => {
             let models: Vec<SleeperModel> = placed.iter().map(|(m, _)| m.clone()).collect();
@@ -405,7 +482,9 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
     let stage = scene.compaction.as_ref().map(|c| c.stage);
     // The stages; a resumed bed skips those done before its checkpoint.
     let observe = &mut recorder;
-    if sleeper.is_some() {
+    if let Some(laid) = laid {
+        bed.lay("tile", laid);
+    } else if sleeper.is_some() {
         bed.fill("under-sleeper layer", 0.0, depth, true, observe);
         if stage == Some(CompactionStage::Layer) {
             compact(&mut bed, observe);

@@ -64,6 +64,10 @@
 //!                                       # sleepers are laid; "bed" (default): the
 //!                                       # finished bed
 //!
+//! [tile]                                # optional: the bed is this periodic bay,
+//! bay = "../results/bed-bay/packing.toml" # repeated along x (super::tile), instead of
+//!                                       # rained; then the final settle
+//!
 //! [[material]] / [[friction]]           # as in ballast-nscd scenes
 //! [output]
 //! frame_interval = "0.1 s"              # VTK frames of the deposition (0: none)
@@ -97,6 +101,9 @@ pub struct BedScene {
     /// Optional vibration of the floor.
     #[serde(default)]
     pub compaction: Option<CompactionSpec>,
+    /// Optional: the bed laid from a periodic bay's packing instead of rained.
+    #[serde(default)]
+    pub tile: Option<TileSpec>,
     /// Materials (densities of stones and sleepers).
     pub material: Vec<MaterialSpec>,
     /// Friction per pair of materials.
@@ -302,6 +309,19 @@ pub enum CompactionStage {
     /// The finished bed, sleepers and crib included, before the final settle.
     #[default]
     Bed,
+}
+
+/// `[tile]`: the bed is a periodic bay's packing repeated along x ([`super::tile`]):
+/// the stones and sleepers of one sleeper bay packed periodic along the track, laid
+/// end to end so that its sleepers fall on the scene's, the copies that cross an end
+/// wall left out; then the bed settles. A long bed (seed 000's 7-sleeper slice) costs
+/// then one bay's deposition and the final settle instead of raining it all.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TileSpec {
+    /// The bay's packing file (relative to the scene file), written by `ballast-pack`
+    /// with `bed.sides = "periodic"`, the same stones, width, depth and sleepers.
+    pub bay: PathBuf,
 }
 
 /// `[output]`.
@@ -556,6 +576,12 @@ impl Validate for BedScene {
             "must be at least 1 (inf keeps the true inertia)",
         );
         if let Some(c) = &self.compaction {
+            v.check(
+                "compaction.stage",
+                self.tile.is_none() || c.stage == CompactionStage::Bed,
+                "\"layer\" cannot go with [tile]: the bay's layer was compacted when the bay \
+                 was packed (\"bed\" vibrates the tiled bed)",
+            );
             v.positive("compaction.amplitude", c.amplitude);
             v.positive("compaction.frequency", c.frequency);
             v.positive("compaction.duration", c.duration);
