@@ -34,6 +34,8 @@ $(PACK_PERIODIC_CHART): tools/pack_report.py $(PACK_PERIODIC) | $(VENV_STAMP)
 ## `make results/bed-impact/summary.json` again continues it.
 pack-presets: $(PACK_PRESETS:%=results/bed-%/summary.json) | $(VENV_STAMP)
 	$(PY) tools/pack_report.py table $(PACK_QUICK:%/summary.json=%) $(^:%/summary.json=%)
+# The tamping7 bed is its bay laid seven times and more along the slice (scenes/bed.toml).
+results/bed-tamping7/summary.json: results/bed-tamping7-bay/summary.json
 # The packing comes with the summary: one run writes both (a pattern rule's targets are
 # made together). The packing is written a moment before the summary, so a rule
 # "packing: summary" would count it out of date and make `make -n` list every run that

@@ -80,3 +80,15 @@ fn the_seed_sized_beds_mesh_the_fine_sleeper_before_packing() {
         );
     }
 }
+
+#[test]
+fn the_tamping7_bed_packs_its_bay_before_laying_it() {
+    // `tile.bay` of the tamping7 preset reads results/bed-tamping7-bay/packing.toml.
+    let commands = dry_run("results/bed-tamping7/summary.json");
+    let bay = commands.find("--preset tamping7-bay");
+    let tiled = commands.find("--preset tamping7 ");
+    assert!(
+        matches!((bay, tiled), (Some(b), Some(t)) if b < t),
+        "make results/bed-tamping7/summary.json does not pack the bay first:\n{commands}"
+    );
+}
