@@ -1386,6 +1386,21 @@ fn a_killed_tamping_run_resumes_to_the_same_state() {
         "no summary for a stopped run"
     );
     assert_eq!(clocks(&paused)["step"], 150);
+    // Asked to stop where its checkpoint already is, a run does nothing and says so
+    // (a bench taking turns asks again when a kill lost the clocks of that checkpoint).
+    let before = std::fs::read(paused.join("checkpoint.bin")).unwrap();
+    let at_150 = tamping_command(&paused, &short)
+        .args(["--stop-after", "150", "--resume"])
+        .arg(&paused)
+        .output()
+        .unwrap();
+    assert_success(&at_150);
+    assert!(String::from_utf8_lossy(&at_150.stdout).contains("at step 150 already: nothing to do"));
+    assert_eq!(
+        std::fs::read(paused.join("checkpoint.bin")).unwrap(),
+        before
+    );
+    assert!(!paused.join("summary.json").exists());
     let again = tamping_command(&paused, &short)
         .arg("--resume")
         .arg(&paused)

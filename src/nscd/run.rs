@@ -87,6 +87,17 @@ pub fn run_with(ctx: &RunContext, resume: bool, stop_after: Option<u64>) -> Resu
             )));
         }
         if let Some(c) = &resumed {
+            // Stopped there already (a bench that takes turns, whose clocks were lost
+            // when the run was killed between writing its checkpoint and its clocks,
+            // asks for the same stop again): nothing to do.
+            if stop == c.step && stop < steps {
+                println!(
+                    "ballast-nscd: the checkpoint in {} is at step {stop} already: nothing to \
+                     do (--stop-after {stop})",
+                    ctx.out_dir.display()
+                );
+                return Ok(());
+            }
             if stop <= c.step {
                 return Err(Error::Message(format!(
                     "{}: --stop-after {stop}: the checkpoint is at step {} already",
