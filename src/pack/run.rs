@@ -185,8 +185,7 @@ fn check_period(
     Ok(())
 }
 
-/// The bay of `[tile]` read from `path` and laid along the bed ([`super::tile`]),
-/// with as many sleepers as the scene has.
+/// The bay of `[tile]` read from `path` and laid along the bed ([`super::tile`]).
 fn lay_tiles(
     scene: &BedScene,
     path: &Path,
@@ -212,6 +211,7 @@ fn lay_tiles(
             mesh: source.mesh.as_deref(),
             spacing: spec.spacing.si(),
             first,
+            count: spec.count,
         }),
         _ => None,
     };
@@ -227,18 +227,6 @@ fn lay_tiles(
             crib_top,
         },
     )?;
-    let wanted = scene.sleepers.as_ref().map_or(0, |s| s.count);
-    if laid.sleepers() != wanted {
-        return Err(Error::invalid(
-            path,
-            format!(
-                "key tile.bay: laid along bed.length ({} m) the bay puts {} sleepers whole \
-                 in the bed, the scene has {wanted} (sleepers.count)",
-                setup.length,
-                laid.sleepers()
-            ),
-        ));
-    }
     println!(
         "ballast-pack: tiled {} ({} stones a bay) into {} stones, {} copies left out at the \
          end walls",

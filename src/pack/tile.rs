@@ -129,6 +129,8 @@ pub struct SceneSleeper<'a> {
     pub spacing: f64,
     /// The first sleeper's nominal x (m).
     pub first: f64,
+    /// How many the bed has (the lay must put as many whole in it).
+    pub count: usize,
 }
 
 /// The bed the bay is laid into, as the scene gives it.
@@ -158,7 +160,8 @@ pub struct Laid {
 }
 
 /// Checks that the bay at `path` fits the bed (periodic, the same width, crib level,
-/// stone family and sleepers, a whole number of sleeper spacings long) and lays it;
+/// stone family and sleepers, a whole number of sleeper spacings long, the bed's
+/// sleeper count laid whole) and lays it;
 /// errors are one line naming `path` and what does not fit.
 pub fn lay_bay(bay: &Packing, path: &Path, bed: &Target) -> Result<Laid> {
     let fail = |what: String| Error::invalid(path, format!("key tile.bay: {what}"));
@@ -287,6 +290,14 @@ pub fn lay_bay(bay: &Packing, path: &Path, bed: &Target) -> Result<Laid> {
             let body = model.body("bay", own, inertia_scale);
             let copies = lay.copies(body.position.x, x_extent(&body));
             laid.extend(copies.shifts.iter().map(|&s| shifted(&own, s)));
+        }
+        if laid.len() != s.count {
+            return Err(fail(format!(
+                "laid along bed.length ({length} m) the bay puts {} sleepers whole in the \
+                 bed, the scene has {} (sleepers.count)",
+                laid.len(),
+                s.count
+            )));
         }
         laid.sort_by(|a, b| a.translation.x.total_cmp(&b.translation.x));
         for (k, own) in laid.into_iter().enumerate() {
