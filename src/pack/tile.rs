@@ -65,7 +65,10 @@ impl Lay {
 
     /// The copies of an item whose mass centre is at x = `centre` and whose contact
     /// shape spans `extent` along x (both in the bay's frame; the centre in the bay's
-    /// cell [0, bay_length)).
+    /// cell [0, bay_length)): in a periodic bed one per bay, its centre wrapped into
+    /// [0, length) (the extent does not matter: the bed continues through its ends);
+    /// between walls, every copy whole inside [0, length], those that cross a wall
+    /// counted as dropped.
     pub fn copies(&self, centre: f64, extent: [f64; 2]) -> Copies {
         let (lb, l) = (self.bay_length, self.length);
         if self.periodic {
