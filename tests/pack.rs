@@ -62,6 +62,13 @@ fn figures(dir: &Path) -> Value {
     summary["figures"].clone()
 }
 
+/// The compactness of control box `name` in a summary's `figures`.
+fn box_compactness(f: &Value, name: &str) -> f64 {
+    let boxes = f["compactness"].as_array().unwrap();
+    let b = boxes.iter().find(|b| b["box"] == name).expect(name);
+    b["value"].as_f64().unwrap()
+}
+
 #[test]
 fn quick_bed_is_settled_dense_and_inside_its_box() {
     let f = figures(quick());
@@ -429,12 +436,10 @@ fn the_same_seed_gives_the_same_packing_on_one_and_two_threads() {
         .filter(|s| s.position[0] < 0.5 * d50 || s.position[0] > 0.4 - 0.5 * d50)
         .count();
     assert!(at_ends > 3, "{at_ends} stones across the ends");
-    let crib = |name: &str| {
-        let boxes = f["compactness"].as_array().unwrap();
-        let b = boxes.iter().find(|b| b["box"] == name).expect(name);
-        b["value"].as_f64().unwrap()
-    };
-    let (inner, across) = (crib("crib_1_2"), crib("crib_2_1"));
+    let (inner, across) = (
+        box_compactness(&f, "crib_1_2"),
+        box_compactness(&f, "crib_2_1"),
+    );
     for value in [inner, across] {
         assert!(
             (0.40..0.70).contains(&value),
@@ -482,11 +487,6 @@ fn a_periodic_bay_laid_along_a_walled_bed_is_the_bay_again() {
     let args: Vec<&str> = args.iter().map(String::as_str).collect();
     let dir = quick_run("bed-small-tiled", 2, &args);
     let (b, f) = (figures(bay), figures(&dir));
-    let value = |f: &Value, name: &str| {
-        let boxes = f["compactness"].as_array().unwrap();
-        let b = boxes.iter().find(|b| b["box"] == name).expect(name);
-        b["value"].as_f64().unwrap()
-    };
     for (tiled, of_bay) in [
         ("under_sleeper_2", "under_sleeper_2"),
         ("under_sleeper_3", "under_sleeper_1"),
@@ -494,7 +494,7 @@ fn a_periodic_bay_laid_along_a_walled_bed_is_the_bay_again() {
         ("crib_2_3", "crib_2_1"),
         ("crib_3_4", "crib_1_2"),
     ] {
-        let (t, a) = (value(&f, tiled), value(&b, of_bay));
+        let (t, a) = (box_compactness(&f, tiled), box_compactness(&b, of_bay));
         assert!(
             (t - a).abs() < 0.005,
             "{tiled} {t} against the bay's {of_bay} {a}"

@@ -58,16 +58,6 @@ pub fn run_with(ctx: &RunContext, resume: bool, stop_after: Option<u64>) -> Resu
     crate::simd::requested_path().map_err(Error::Message)?;
     let mut timer = PhaseTimer::new();
     let (scene, inputs): (NscdScene, _) = timer.time("read scene", || ctx.load_scene())?;
-    let Model {
-        mut bodies,
-        friction,
-        stone_diameters,
-        driven,
-        tamping,
-        period,
-        warm_start,
-    } = timer.time("build bodies", || scene.build(&ctx.scene_path))?;
-    std::fs::create_dir_all(ctx.out_dir.join("frames")).map_err(|e| Error::io(&ctx.out_dir, e))?;
     let scene_text = toml::to_string(&inputs)
         .map_err(|e| Error::Message(format!("cannot write the merged scene: {e}")))?;
     let checkpoint_path = ctx.out_dir.join(CHECKPOINT_FILE);
@@ -107,6 +97,18 @@ pub fn run_with(ctx: &RunContext, resume: bool, stop_after: Option<u64>) -> Resu
             }
         }
     }
+    // The bodies after the checks above: a stop with nothing to do, or refused, does
+    // not build them (40 000 stones on the tamping7 bed).
+    let Model {
+        mut bodies,
+        friction,
+        stone_diameters,
+        driven,
+        tamping,
+        period,
+        warm_start,
+    } = timer.time("build bodies", || scene.build(&ctx.scene_path))?;
+    std::fs::create_dir_all(ctx.out_dir.join("frames")).map_err(|e| Error::io(&ctx.out_dir, e))?;
     if let Some(plan) = &tamping {
         if steps as f64 * dt < plan.end() - 0.5 * dt {
             println!(
