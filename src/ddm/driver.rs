@@ -30,7 +30,6 @@
 //! Stopping (a fixed n_DDM, or the error measure) is [`body_nlgs::solve_by`]'s, on the
 //! whole problem, counted in DDM iterations.
 
-use rayon::prelude::*;
 use std::ops::Range;
 use std::sync::atomic::{AtomicBool, AtomicPtr, AtomicUsize, Ordering};
 use std::sync::Mutex;
@@ -40,9 +39,8 @@ use nalgebra::{Matrix3, Vector3};
 
 use super::partition::Decomposition;
 use crate::nscd::body_nlgs::{
-    self, Bodies, BodyInverses, BodyState, ContactRow, Prepared, Problem, SweepStats, Sweepable,
+    self, Bodies, BodyInverses, BodyState, ContactRow, Problem, SweepStats, Sweepable,
 };
-use crate::nscd::coulomb::LocalCoulomb;
 use crate::nscd::nlgs::{NlgsOptions, NlgsReport};
 
 /// Which DDM driver.
@@ -96,10 +94,8 @@ pub struct DdmReport {
 
 /// A block's own copy of the velocities its contacts touch (asynchronous driver).
 struct OwnVelocities {
-    /// Its contacts with bodies renumbered into `state`.
-    prepared: Vec<Prepared>,
-    /// Its own local solvers (its contacts see split masses).
-    locals: Vec<LocalCoulomb>,
+    /// Its contacts with bodies renumbered into `state` (and split masses).
+    contacts: Sweepable,
     /// Local body → global body.
     global: Vec<usize>,
     /// Whether each local body moves (is written back).
@@ -153,12 +149,12 @@ impl Block {
     }
 
     /// The block of contacts `range` with its own copy of the velocities: its sweep
-    /// data `prepared` (bodies in the global numbering, renumbered here in place into
-    /// its own state) and local solvers; its state copied from `state`, its impulses
-    /// from `impulse`; `moving` tells which bodies move. `slot` is scratch of one entry
-    /// per body, all `usize::MAX` on entry and on return.
+    /// data `contacts` (bodies in the global numbering, renumbered here in place into
+    /// its own state); its state copied from `state`, its impulses from `impulse`;
+    /// `moving` tells which bodies move. `slot` is scratch of one entry per body, all
+    /// `usize::MAX` on entry and on return.
     fn own(
-        (mut prepared, locals): (Vec<Prepared>, Vec<LocalCoulomb>),
+        mut contacts: Sweepable,
         range: Range<usize>,
         (state, impulse): (&[BodyState], &[[f64; 3]]),
         sweeps: usize,
@@ -166,13 +162,14 @@ impl Block {
         slot: &mut [usize],
     ) -> Self {
         let mut global = Vec::new();
-        for c in &mut prepared {
+        for c in &mut contacts.normals {
             for b in c.bodies_mut() {
-                if slot[*b] == usize::MAX {
-                    slot[*b] = global.len();
-                    global.push(*b);
+                let g = *b as usize;
+                if slot[g] == usize::MAX {
+                    slot[g] = global.len();
+                    global.push(g);
                 }
-                *b = slot[*b];
+                *b = slot[g] as u32;
             }
         }
         for &b in &global {
@@ -180,8 +177,7 @@ impl Block {
         }
         Block {
             own: Some(OwnVelocities {
-                prepared,
-                locals,
+                contacts,
                 moves: global.iter().map(|&b| moving[b]).collect(),
                 state: global.iter().map(|&b| state[b]).collect(),
                 global,
@@ -198,15 +194,13 @@ impl Block {
         for _ in 0..self.sweeps {
             self.stats = match (&mut self.own, global) {
                 (Some(own), _) => body_nlgs::sweep(
-                    &own.prepared,
-                    &own.locals,
+                    own.contacts.view(),
                     &mut self.impulse,
                     &mut self.directions,
                     &mut own.state,
                 ),
                 (None, Some(global)) => body_nlgs::sweep_on(
-                    &contacts.prepared[self.range.clone()],
-                    &contacts.locals[self.range.clone()],
+                    contacts.view().part(self.range.clone()),
                     &mut self.impulse,
                     &mut self.directions,
                     global,
@@ -314,13 +308,7 @@ pub fn solve(
         .map(|(r, &n)| {
             let block = match &split {
                 Some(split) => {
-                    // In parallel, collected in order.
-                    let prepared: Vec<Prepared> = rows[r.clone()]
-                        .par_iter()
-                        .map(|row| Prepared::new(row, &split.inverses()))
-                        .collect();
-                    let locals = prepared.par_iter().map(Prepared::local_solver).collect();
-                    let own = (prepared, locals);
+                    let own = Sweepable::new(&rows[r.clone()], &split.inverses());
                     Block::own(own, r.clone(), (state, impulse), n, &moving, &mut slot)
                 }
                 None => Block::shared(r.clone(), impulse, n),
@@ -408,8 +396,7 @@ pub fn solve(
                     let mut last = SweepStats::default();
                     for _ in 0..ddm.interface_sweeps {
                         last = body_nlgs::sweep(
-                            &contacts.prepared[gamma.clone()],
-                            &contacts.locals[gamma.clone()],
+                            contacts.view().part(gamma.clone()),
                             &mut impulse[gamma.clone()],
                             &mut directions[gamma.clone()],
                             state,

@@ -21,6 +21,7 @@
 //! velocities (the relative velocities before any impulse).
 
 use std::marker::PhantomData;
+use std::ops::Range;
 use std::time::{Duration, Instant};
 
 use nalgebra::{Matrix3, Vector3};
@@ -59,15 +60,33 @@ pub struct BodyInverses<'a> {
     pub inverse_inertia: &'a [Matrix3<f64>],
 }
 
-/// One contact's data for the sweep, in world lanes of four `[x, y, z, 0]` so that each
-/// row loads into one vector register (see [`crate::simd`]); the local solver's cold data
-/// is kept apart in [`LocalCoulomb`].
+/// The part of a contact's sweep data that every sweep reads: the normal row of the
+/// local Jacobian, the gap shift and the two bodies. An open contact that separates
+/// (four in five in a bed at rest) needs nothing else, so these rows are kept apart
+/// from the rest ([`Prepared`]) and a sweep streams 112 bytes a contact for it instead
+/// of the whole record: the sweeps of a large bed are bound by memory traffic, and two
+/// threads share it.
+#[derive(Debug, Clone)]
+#[repr(C)]
+pub(crate) struct NormalRow {
+    /// `[f_n, A_j,n, A_i,n]`, acting on `v_j − v_i`, `ω_j` and `−ω_i`.
+    jacobian: [[f64; 4]; 3],
+    /// Added to the normal relative velocity (gap prediction, m/s).
+    shift: f64,
+    /// The two bodies (indices in the state the contact is swept on).
+    bodies: [u32; 2],
+}
+
+/// The rest of a contact's sweep data, read only when it carries an impulse or
+/// approaches, in world lanes of four `[x, y, z, 0]` so that each row loads into one
+/// vector register (see [`crate::simd`]); the local solver's cold data is kept apart in
+/// [`LocalCoulomb`].
 #[derive(Debug, Clone)]
 #[repr(C, align(32))]
 pub(crate) struct Prepared {
-    /// Rows of the local Jacobian: for k = n, t, s, `jacobian[k] = [f_k, A_j,k, A_i,k]`,
-    /// acting on `v_j − v_i`, `ω_j` and `−ω_i`.
-    jacobian: [[[f64; 4]; 3]; 3],
+    /// Tangential rows of the local Jacobian: for k = t, s, `tangent[k] = [f_k, A_j,k,
+    /// A_i,k]`.
+    tangent: [[[f64; 4]; 3]; 2],
     /// ± I⁻¹ A_s columns (negated for the first body, which receives −Δr).
     spin: [[[f64; 4]; 3]; 2],
     /// W_aa, row-major (exactly symmetric).
@@ -76,9 +95,7 @@ pub(crate) struct Prepared {
     w_inverse: Option<[f64; 9]>,
     /// ± 1/m (negated for the first body).
     inverse_mass: [f64; 2],
-    shift: f64,
     mu: f64,
-    pub(crate) bodies: [usize; 2],
     moves: [bool; 2],
 }
 
@@ -145,9 +162,53 @@ impl<'a> Bodies<'a> {
     }
 }
 
+/// Component k of the relative velocity without the gap shift, `f_k·(v_j − v_i) +
+/// A_j,k·ω_j − A_i,k·ω_i`, from its Jacobian row `j = [f_k, A_j,k, A_i,k]`.
+#[inline(always)]
+fn row_velocity<V: F64x4>(j: &[[f64; 4]; 3], dv: V, wj: V, wi: V) -> f64 {
+    let own = V::load(&j[1]) * wj;
+    V::load(&j[0])
+        .mul_add(dv, V::load(&j[2]).neg_mul_add(wi, own))
+        .sum()
+}
+
+/// `v_j − v_i`, `ω_j`, `ω_i` as lanes, from the two bodies' states.
+#[inline(always)]
+fn lanes_of<V: F64x4>(first: &BodyState, second: &BodyState) -> (V, V, V) {
+    let (vi, wi) = halves(first);
+    let (vj, wj) = halves(second);
+    (V::load(vj) - V::load(vi), V::load(wj), V::load(wi))
+}
+
+impl NormalRow {
+    /// Its two bodies as indices.
+    #[inline(always)]
+    fn pair(&self) -> [usize; 2] {
+        [self.bodies[0] as usize, self.bodies[1] as usize]
+    }
+
+    /// Its two bodies (their indices in the state it sweeps), to renumber them.
+    pub(crate) fn bodies_mut(&mut self) -> &mut [u32; 2] {
+        &mut self.bodies
+    }
+
+    /// `v_j − v_i`, `ω_j`, `ω_i` as lanes.
+    #[inline(always)]
+    fn body_lanes<V: F64x4>(&self, state: &[BodyState]) -> (V, V, V) {
+        let [i, j] = self.pair();
+        lanes_of(&state[i], &state[j])
+    }
+
+    /// The normal relative velocity, gap shift included.
+    #[inline(always)]
+    fn normal<V: F64x4>(&self, dv: V, wj: V, wi: V) -> f64 {
+        row_velocity(&self.jacobian, dv, wj, wi) + self.shift
+    }
+}
+
 impl Prepared {
-    /// A contact's sweep data.
-    pub(crate) fn new(row: &ContactRow, inv: &BodyInverses) -> Self {
+    /// A contact's sweep data: its normal row and the rest.
+    pub(crate) fn new(row: &ContactRow, inv: &BodyInverses) -> (NormalRow, Self) {
         let bodies = [row.bodies[0] as usize, row.bodies[1] as usize];
         let mut jacobian = [[[0.0; 4]; 3]; 3];
         let mut spin = [[[0.0; 4]; 3]; 2];
@@ -187,17 +248,21 @@ impl Prepared {
             w[3 * k + l] = m;
             w[3 * l + k] = m;
         }
-        Prepared {
-            jacobian,
+        let normal = NormalRow {
+            jacobian: jacobian[0],
+            shift: row.shift,
+            bodies: row.bodies,
+        };
+        let rest = Prepared {
+            tangent: [jacobian[1], jacobian[2]],
             spin,
             w,
             w_inverse: invert(&w),
             inverse_mass,
-            shift: row.shift,
             mu: row.mu,
-            bodies,
             moves,
-        }
+        };
+        (normal, rest)
     }
 
     /// Its local Coulomb solver (W_aa, its inverse and µ).
@@ -205,69 +270,46 @@ impl Prepared {
         LocalCoulomb::with_inverse(&self.w, self.w_inverse, self.mu)
     }
 
-    /// Its two bodies (their indices in the state it sweeps).
-    pub(crate) fn bodies_mut(&mut self) -> &mut [usize; 2] {
-        &mut self.bodies
-    }
-
-    /// The relative velocity (local, gap shift included) from the bodies' states, in
-    /// plain arithmetic (the error measure and the set-up).
-    pub(crate) fn velocity(&self, state: &[BodyState]) -> [f64; 3] {
-        let (dv, wj, wi) = self.body_lanes::<Portable4>(state);
+    /// The tangential components of the relative velocity.
+    #[inline(always)]
+    fn tangential<V: F64x4>(&self, dv: V, wj: V, wi: V) -> [f64; 2] {
         [
-            self.row::<Portable4>(0, dv, wj, wi) + self.shift,
-            self.row::<Portable4>(1, dv, wj, wi),
-            self.row::<Portable4>(2, dv, wj, wi),
+            row_velocity(&self.tangent[0], dv, wj, wi),
+            row_velocity(&self.tangent[1], dv, wj, wi),
         ]
     }
 
+    /// The relative velocity (local, gap shift included) of the contact whose normal
+    /// row is `normal`, from the bodies' states, in plain arithmetic (the error measure
+    /// and the set-up).
+    pub(crate) fn velocity(&self, normal: &NormalRow, state: &[BodyState]) -> [f64; 3] {
+        let (dv, wj, wi) = normal.body_lanes::<Portable4>(state);
+        let [t, s] = self.tangential(dv, wj, wi);
+        [normal.normal(dv, wj, wi), t, s]
+    }
+
     /// Applies the impulse change `d` to the two bodies, in plain arithmetic.
-    fn apply(&self, d: [f64; 3], state: &mut [BodyState]) {
+    fn apply(&self, normal: &NormalRow, d: [f64; 3], state: &mut [BodyState]) {
         // SAFETY: the view is made from the exclusive borrow just here.
-        unsafe { self.apply_lanes::<Portable4>(d, Bodies::new(state)) };
-    }
-
-    /// `v_j − v_i`, `ω_j`, `ω_i` as lanes.
-    #[inline(always)]
-    fn body_lanes<V: F64x4>(&self, state: &[BodyState]) -> (V, V, V) {
-        Self::lanes_of(&state[self.bodies[0]], &state[self.bodies[1]])
-    }
-
-    /// `v_j − v_i`, `ω_j`, `ω_i` as lanes, from the two bodies' states.
-    #[inline(always)]
-    fn lanes_of<V: F64x4>(first: &BodyState, second: &BodyState) -> (V, V, V) {
-        let (vi, wi) = halves(first);
-        let (vj, wj) = halves(second);
-        (V::load(vj) - V::load(vi), V::load(wj), V::load(wi))
-    }
-
-    /// Component k of the relative velocity without the gap shift:
-    /// `f_k·(v_j − v_i) + A_j,k·ω_j − A_i,k·ω_i`.
-    #[inline(always)]
-    fn row<V: F64x4>(&self, k: usize, dv: V, wj: V, wi: V) -> f64 {
-        let j = &self.jacobian[k];
-        let own = V::load(&j[1]) * wj;
-        V::load(&j[0])
-            .mul_add(dv, V::load(&j[2]).neg_mul_add(wi, own))
-            .sum()
+        unsafe { self.apply_lanes::<Portable4>(normal, d, Bodies::new(state)) };
     }
 
     /// Adds `F d / m_j`, `I_j⁻¹ A_j d` to body j and the opposite to body i.
     /// Safety: as [`Bodies::get`] for the bodies this contact moves.
     #[inline(always)]
-    unsafe fn apply_lanes<V: F64x4>(&self, d: [f64; 3], state: Bodies<'_>) {
+    unsafe fn apply_lanes<V: F64x4>(&self, normal: &NormalRow, d: [f64; 3], state: Bodies<'_>) {
         let (d0, d1, d2) = (V::splat(d[0]), V::splat(d[1]), V::splat(d[2]));
-        let j = &self.jacobian;
+        let (n, t) = (&normal.jacobian, &self.tangent);
         let world =
-            V::load(&j[2][0]).mul_add(d2, V::load(&j[1][0]).mul_add(d1, V::load(&j[0][0]) * d0));
-        for s in 0..2 {
+            V::load(&t[1][0]).mul_add(d2, V::load(&t[0][0]).mul_add(d1, V::load(&n[0]) * d0));
+        for (s, body) in normal.pair().into_iter().enumerate() {
             if !self.moves[s] {
                 continue;
             }
             let spin = &self.spin[s];
             let turn = V::load(&spin[2])
                 .mul_add(d2, V::load(&spin[1]).mul_add(d1, V::load(&spin[0]) * d0));
-            let b = &mut *state.get(self.bodies[s]);
+            let b = &mut *state.get(body);
             let (v, w) = b.split_at_mut(4);
             let v: &mut [f64; 4] = v.try_into().unwrap();
             let w: &mut [f64; 4] = w.try_into().unwrap();
@@ -299,7 +341,9 @@ impl Prepared {
 
 /// The diagonal Delassus block W_aa (row-major) of each contact.
 pub fn delassus_diagonal(rows: &[ContactRow], inverses: &BodyInverses) -> Vec<[f64; 9]> {
-    rows.iter().map(|r| Prepared::new(r, inverses).w).collect()
+    rows.iter()
+        .map(|r| Prepared::new(r, inverses).1.w)
+        .collect()
 }
 
 /// Solves the contact problem by NLGS in body-velocity form.
@@ -324,15 +368,7 @@ pub fn solve(
         angular_velocity,
         impulse,
         options,
-        |contacts, impulse, directions, state| {
-            sweep(
-                &contacts.prepared,
-                &contacts.locals,
-                impulse,
-                directions,
-                state,
-            )
-        },
+        |contacts, impulse, directions, state| sweep(contacts.view(), impulse, directions, state),
     )
 }
 
@@ -357,16 +393,32 @@ impl std::ops::DerefMut for BodyState {
     }
 }
 
-/// The contacts of one problem, ready to sweep: the per-contact sweep data and the
-/// local Coulomb solvers, in the order of the rows.
+/// The contacts of one problem, ready to sweep: the normal rows every sweep reads, the
+/// rest of the sweep data and the local Coulomb solvers, in the order of the rows.
 pub struct Sweepable {
-    /// Sweep data per contact.
+    /// Normal row, gap shift and bodies per contact.
+    pub(crate) normals: Vec<NormalRow>,
+    /// The rest of the sweep data per contact.
     pub(crate) prepared: Vec<Prepared>,
     /// Local solver per contact.
     pub(crate) locals: Vec<LocalCoulomb>,
 }
 
 impl Sweepable {
+    /// The sweep data of `rows` (built in parallel, collected in order).
+    pub(crate) fn new(rows: &[ContactRow], inverses: &BodyInverses) -> Self {
+        let (normals, prepared): (Vec<NormalRow>, Vec<Prepared>) =
+            rows.par_iter().map(|r| Prepared::new(r, inverses)).unzip();
+        // The local solvers (W_aa, its inverse, µ): read only by contacts that reach
+        // them.
+        let locals = prepared.par_iter().map(Prepared::local_solver).collect();
+        Sweepable {
+            normals,
+            prepared,
+            locals,
+        }
+    }
+
     /// The number of contacts.
     pub fn len(&self) -> usize {
         self.prepared.len()
@@ -375,6 +427,35 @@ impl Sweepable {
     /// Whether there is no contact.
     pub fn is_empty(&self) -> bool {
         self.prepared.is_empty()
+    }
+
+    /// All its contacts, to sweep.
+    pub(crate) fn view(&self) -> Contacts<'_> {
+        Contacts {
+            normals: &self.normals,
+            prepared: &self.prepared,
+            locals: &self.locals,
+        }
+    }
+}
+
+/// Some contacts of a [`Sweepable`], borrowed for a sweep: their three parts, of the
+/// same length.
+#[derive(Clone, Copy)]
+pub(crate) struct Contacts<'a> {
+    normals: &'a [NormalRow],
+    prepared: &'a [Prepared],
+    locals: &'a [LocalCoulomb],
+}
+
+impl Contacts<'_> {
+    /// The contacts `range` of these.
+    pub(crate) fn part(self, range: Range<usize>) -> Self {
+        Contacts {
+            normals: &self.normals[range.clone()],
+            prepared: &self.prepared[range.clone()],
+            locals: &self.locals[range],
+        }
     }
 }
 
@@ -411,22 +492,20 @@ impl SweepStats {
 /// for the rest, and the impulse change applied to the two bodies. The lane arithmetic
 /// runs on AVX2 + FMA when [`crate::simd::avx2_fma`] holds.
 pub(crate) fn sweep(
-    contacts: &[Prepared],
-    locals: &[LocalCoulomb],
+    contacts: Contacts<'_>,
     impulse: &mut [[f64; 3]],
     directions: &mut [[f64; 2]],
     state: &mut [BodyState],
 ) -> SweepStats {
     // SAFETY: the view is made from the exclusive borrow just here.
-    unsafe { sweep_on(contacts, locals, impulse, directions, Bodies::new(state)) }
+    unsafe { sweep_on(contacts, impulse, directions, Bodies::new(state)) }
 }
 
 /// [`sweep`] on a view of the bodies. Safety: while it runs, no other thread writes a
 /// body these contacts touch, nor touches a body they move (a body with a nonzero
 /// inverse mass in their rows).
 pub(crate) unsafe fn sweep_on(
-    contacts: &[Prepared],
-    locals: &[LocalCoulomb],
+    contacts: Contacts<'_>,
     impulse: &mut [[f64; 3]],
     directions: &mut [[f64; 2]],
     state: Bodies<'_>,
@@ -436,52 +515,54 @@ pub(crate) unsafe fn sweep_on(
         if crate::simd::avx2_fma() {
             // SAFETY: the CPU has AVX2 and FMA (checked just above); the caller's
             // guarantee for `state`.
-            return sweep_avx2(contacts, locals, impulse, directions, state);
+            return sweep_avx2(contacts, impulse, directions, state);
         }
     }
-    sweep_lanes::<Portable4>(contacts, locals, impulse, directions, state)
+    sweep_lanes::<Portable4>(contacts, impulse, directions, state)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 unsafe fn sweep_avx2(
-    contacts: &[Prepared],
-    locals: &[LocalCoulomb],
+    contacts: Contacts<'_>,
     impulse: &mut [[f64; 3]],
     directions: &mut [[f64; 2]],
     state: Bodies<'_>,
 ) -> SweepStats {
-    sweep_lanes::<crate::simd::avx::Avx4>(contacts, locals, impulse, directions, state)
+    sweep_lanes::<crate::simd::avx::Avx4>(contacts, impulse, directions, state)
 }
 
 #[inline(always)]
 unsafe fn sweep_lanes<V: F64x4>(
-    contacts: &[Prepared],
-    locals: &[LocalCoulomb],
+    contacts: Contacts<'_>,
     impulse: &mut [[f64; 3]],
     directions: &mut [[f64; 2]],
     state: Bodies<'_>,
 ) -> SweepStats {
     let mut stats = SweepStats::default();
-    for (((c, local), old), direction) in contacts
+    for (i, ((n, old), direction)) in contacts
+        .normals
         .iter()
-        .zip(locals)
         .zip(impulse.iter_mut())
         .zip(directions.iter_mut())
+        .enumerate()
     {
         let o = *old;
-        let (dv, wj, wi) =
-            Prepared::lanes_of::<V>(&*state.get(c.bodies[0]), &*state.get(c.bodies[1]));
-        let un = c.row(0, dv, wj, wi) + c.shift;
+        let [first, second] = n.pair();
+        let (dv, wj, wi) = lanes_of::<V>(&*state.get(first), &*state.get(second));
+        let un = n.normal(dv, wj, wi);
         if un >= 0.0 && o == [0.0; 3] {
-            // Open and separating: r stays 0 (q = u), nothing changes.
+            // Open and separating: r stays 0 (q = u), nothing changes; the rest of
+            // its data is not read.
             continue;
         }
+        let (c, local) = (&contacts.prepared[i], &contacts.locals[i]);
         let w = &c.w;
+        let [ut, us] = c.tangential(dv, wj, wi);
         let q = [
             un - (w[0] * o[0] + w[1] * o[1] + w[2] * o[2]),
-            c.row(1, dv, wj, wi) - (w[3] * o[0] + w[4] * o[1] + w[5] * o[2]),
-            c.row(2, dv, wj, wi) - (w[6] * o[0] + w[7] * o[1] + w[8] * o[2]),
+            ut - (w[3] * o[0] + w[4] * o[1] + w[5] * o[2]),
+            us - (w[6] * o[0] + w[7] * o[1] + w[8] * o[2]),
         ];
         // (No closures on this path: see crate::simd.)
         let stick = if q[0] < 0.0 { c.stick(q) } else { None };
@@ -499,7 +580,7 @@ unsafe fn sweep_lanes<V: F64x4>(
         };
         let d = [r[0] - o[0], r[1] - o[1], r[2] - o[2]];
         if d != [0.0; 3] {
-            c.apply_lanes::<V>(d, state);
+            c.apply_lanes::<V>(n, d, state);
         }
         let scale = w[0] * w[0];
         stats.change += scale * (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
@@ -511,12 +592,12 @@ unsafe fn sweep_lanes<V: F64x4>(
 
 /// The error measure's sums over some contacts: `[Σ ‖e_a‖², Σ ‖r̂_a‖², Σ ‖u_a‖²]`
 /// (module docs), with the relative velocities on the same lanes as the sweep.
-fn measure_chunk(contacts: &[Prepared], impulse: &[[f64; 3]], state: &[BodyState]) -> [f64; 3] {
+fn measure_chunk(contacts: Contacts<'_>, impulse: &[[f64; 3]], state: &[BodyState]) -> [f64; 3] {
     #[cfg(target_arch = "x86_64")]
     {
         if crate::simd::avx2_fma() {
             #[target_feature(enable = "avx2,fma")]
-            unsafe fn on_avx(c: &[Prepared], i: &[[f64; 3]], s: &[BodyState]) -> [f64; 3] {
+            unsafe fn on_avx(c: Contacts<'_>, i: &[[f64; 3]], s: &[BodyState]) -> [f64; 3] {
                 measure_lanes::<crate::simd::avx::Avx4>(c, i, s)
             }
             // SAFETY: the CPU has AVX2 and FMA (checked just above).
@@ -528,18 +609,15 @@ fn measure_chunk(contacts: &[Prepared], impulse: &[[f64; 3]], state: &[BodyState
 
 #[inline(always)]
 fn measure_lanes<V: F64x4>(
-    contacts: &[Prepared],
+    contacts: Contacts<'_>,
     impulse: &[[f64; 3]],
     state: &[BodyState],
 ) -> [f64; 3] {
     let (mut sum, mut r_norm, mut u_norm) = (0.0, 0.0, 0.0);
-    for (c, r) in contacts.iter().zip(impulse) {
-        let (dv, wj, wi) = c.body_lanes::<V>(state);
-        let u = [
-            c.row(0, dv, wj, wi) + c.shift,
-            c.row(1, dv, wj, wi),
-            c.row(2, dv, wj, wi),
-        ];
+    for ((n, c), r) in contacts.normals.iter().zip(contacts.prepared).zip(impulse) {
+        let (dv, wj, wi) = n.body_lanes::<V>(state);
+        let [ut, us] = c.tangential(dv, wj, wi);
+        let u = [n.normal(dv, wj, wi), ut, us];
         u_norm += u[0] * u[0] + u[1] * u[1] + u[2] * u[2];
         if *r == [0.0; 3] && u[0] >= 0.0 {
             // Open and separating: the residual is exactly zero (Π_K(−ũ) = 0 when
@@ -620,27 +698,20 @@ impl Problem {
             .zip(angular_velocity.iter())
             .map(|(v, w)| BodyState([v.x, v.y, v.z, 0.0, w.x, w.y, w.z, 0.0]))
             .collect();
-        // In parallel, collected in order.
-        let prepared: Vec<Prepared> = rows
-            .par_iter()
-            .map(|r| Prepared::new(r, inverses))
-            .collect();
-        // The local solvers (W_aa, its inverse, µ): read only by contacts that reach
-        // them.
-        let locals: Vec<LocalCoulomb> = prepared.par_iter().map(Prepared::local_solver).collect();
-        let free_norm = prepared
-            .iter()
-            .flat_map(|c| c.velocity(&state))
+        let contacts = Sweepable::new(rows, inverses);
+        let pairs = || contacts.normals.iter().zip(&contacts.prepared);
+        let free_norm = pairs()
+            .flat_map(|(n, c)| c.velocity(n, &state))
             .map(|x| x * x)
             .sum::<f64>()
             .sqrt();
-        for (c, r) in prepared.iter().zip(impulse.iter()) {
+        for ((n, c), r) in pairs().zip(impulse.iter()) {
             if *r != [0.0; 3] {
-                c.apply(*r, &mut state);
+                c.apply(n, *r, &mut state);
             }
         }
         Problem {
-            contacts: Sweepable { prepared, locals },
+            contacts,
             state,
             free_norm,
         }
@@ -678,8 +749,7 @@ where
     F: FnMut(&Sweepable, &mut [[f64; 3]], &mut [[f64; 2]], &mut [BodyState]) -> SweepStats,
     G: FnMut(&mut [[f64; 3]]),
 {
-    let prepared = &contacts.prepared;
-    let rows_len = prepared.len();
+    let rows_len = contacts.len();
     let mut directions = vec![[0.0f64; 2]; rows_len];
     let mut report = NlgsReport {
         iterations: 0,
@@ -701,10 +771,14 @@ where
         // In parallel over fixed chunks of contacts, the partial sums added in chunk
         // order: the same value on any number of threads.
         let measure = |impulse: &[[f64; 3]], state: &[BodyState]| {
-            let parts: Vec<[f64; 3]> = prepared
+            let parts: Vec<[f64; 3]> = impulse
                 .par_chunks(MEASURE_CHUNK)
-                .zip(impulse.par_chunks(MEASURE_CHUNK))
-                .map(|(contacts, impulse)| measure_chunk(contacts, impulse, state))
+                .enumerate()
+                .map(|(k, impulse)| {
+                    let first = k * MEASURE_CHUNK;
+                    let part = contacts.view().part(first..first + impulse.len());
+                    measure_chunk(part, impulse, state)
+                })
                 .collect();
             let (mut sum, mut r_norm, mut u_norm) = (0.0, 0.0, 0.0);
             for p in parts {
