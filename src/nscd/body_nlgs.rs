@@ -346,6 +346,9 @@ impl Prepared {
 /// The cache lines of one [`Prepared`] record (aligned to a line).
 const RECORD_LINES: usize = std::mem::size_of::<Prepared>() / 64;
 
+/// The cache lines one [`LocalCoulomb`] may span (not aligned to a line).
+const LOCAL_LINES: usize = std::mem::size_of::<LocalCoulomb>().div_ceil(64) + 1;
+
 /// The diagonal Delassus block W_aa (row-major) of each contact.
 pub fn delassus_diagonal(rows: &[ContactRow], inverses: &BodyInverses) -> Vec<[f64; 9]> {
     rows.iter()
@@ -548,22 +551,31 @@ unsafe fn sweep_lanes<V: F64x4>(
 ) -> SweepStats {
     let mut stats = SweepStats::default();
     let count = contacts.normals.len();
-    assert!([impulse.len(), directions.len(), contacts.prepared.len()] == [count; 3]);
+    let lengths = [
+        impulse.len(),
+        directions.len(),
+        contacts.prepared.len(),
+        contacts.locals.len(),
+    ];
+    assert!(
+        lengths == [count; 4],
+        "one impulse, direction and record per contact"
+    );
     let imp = impulse.as_mut_ptr();
-    for (i, (n, direction)) in contacts
-        .normals
-        .iter()
-        .zip(directions.iter_mut())
-        .enumerate()
-    {
+    let dirs = directions.as_mut_ptr();
+    for (i, n) in contacts.normals.iter().enumerate() {
         // The contacts that carry an impulse go the slow path; their records are read
-        // out of sequence, so ask for the one a few contacts ahead now.
+        // out of sequence, so ask for the one a few contacts ahead now, and for its
+        // local solver if it slipped in an earlier sweep (a slip direction is kept).
         let ahead = i + PREFETCH_AHEAD;
         if ahead < count && *imp.add(ahead) != [0.0; 3] {
             crate::simd::prefetch(&contacts.prepared[ahead], RECORD_LINES);
+            if *dirs.add(ahead) != [0.0; 2] {
+                crate::simd::prefetch(&contacts.locals[ahead], LOCAL_LINES);
+            }
         }
-        // SAFETY: i < count = impulse.len(), and only this reference writes it.
-        let old = &mut *imp.add(i);
+        // SAFETY: i < count, the length of both, and only these references write them.
+        let (old, direction) = (&mut *imp.add(i), &mut *dirs.add(i));
         let o = *old;
         let [first, second] = n.pair();
         let (dv, wj, wi) = lanes_of::<V>(&*state.get(first), &*state.get(second));
