@@ -29,3 +29,20 @@ bench-nscd: $(RELEASE)/ballast-nscd $(STONE_MESHES) | $(VENV_STAMP)
 	  done; \
 	done
 	$(PY) tools/nscd_bench.py $(NSCD_BENCH_OUT) | tee $(NSCD_BENCH_OUT)/table.md
+
+# The NLGS sweep alone on a synthetic problem of 118 000 contacts between 7 000 bodies
+# (examples/nlgs_sweep.rs; docs/ddm.md, "Drivers"): ns per contact and sweep with none,
+# 5 % and 20 % of the contacts pressed shut, on one thread, then the 20 % case twice at
+# once (one per core: do two sweeps share the memory bandwidth?). Seconds long; part of
+# `make bench`.
+SWEEP_BENCH_CASES := 0:1 0.05:1 0.2:1 0.2:100
+.PHONY: bench-sweep
+bench: bench-sweep
+bench-sweep:
+	$(CARGO) build --release --locked --example nlgs_sweep
+	@for case in $(SWEEP_BENCH_CASES); do \
+	  RAYON_NUM_THREADS=1 $(RELEASE)/examples/nlgs_sweep 7000 300 $${case%:*} $${case#*:} || exit 1; \
+	done
+	@echo "two at once:"; \
+	RAYON_NUM_THREADS=1 $(RELEASE)/examples/nlgs_sweep 7000 300 0.2 1 & \
+	RAYON_NUM_THREADS=1 $(RELEASE)/examples/nlgs_sweep 7000 300 0.2 1; wait
