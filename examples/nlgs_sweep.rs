@@ -1,8 +1,9 @@
 //! The NLGS sweep's memory behaviour on a synthetic contact problem (`make bench-sweep`):
-//! `n` random contacts between `bodies` bodies, each between bodies at most 100 apart
-//! in the numbering (as in a packed bed renumbered by position), a share of them
-//! pressed shut (the rest open and separating), solved with a fixed number of sweeps
-//! on one thread. Prints ns per contact and sweep and contact updates/s.
+//! 17 random contacts per body, each between bodies at most 100 apart in the numbering
+//! (as in a packed bed renumbered by position), a share of them pressed shut (the rest
+//! open and separating), solved with a fixed number of sweeps (one thread unless
+//! `RAYON_NUM_THREADS` says otherwise). Prints ns per contact and sweep and contact
+//! updates/s.
 //!
 //! ```text
 //! cargo run --release --example nlgs_sweep -- BODIES SWEEPS CLOSED_SHARE MU
