@@ -1,9 +1,9 @@
 //! The NLGS sweep's memory behaviour on a synthetic contact problem (`make bench-sweep`):
 //! 17 random contacts per body, each between bodies at most 100 apart in the numbering
 //! (as in a packed bed renumbered by position), a share of them pressed shut (the rest
-//! open and separating), solved with a fixed number of sweeps (one thread unless
-//! `RAYON_NUM_THREADS` says otherwise). Prints ns per contact and sweep and contact
-//! updates/s.
+//! open and separating), solved by the plain NLGS with a fixed number of sweeps (the
+//! sweeps are sequential; only the set-up and the final error measure use rayon's
+//! threads). Prints ns per contact and sweep and contact updates/s.
 //!
 //! ```text
 //! cargo run --release --example nlgs_sweep -- BODIES SWEEPS CLOSED_SHARE MU
