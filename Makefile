@@ -9,8 +9,9 @@
 #   make meshes   mesh every geo/*.geo and the stone family
 #   make paper    the QDEM scenes at the paper's resolution and the convergence table
 #   make bench    QDEM throughput at paper resolution, NSCD throughput and the DDM
-#                 efficiency (quick bed), each on 1 and 2 threads; the seed's Table 3
-#                 tamping case in its three versions (hours; needs the table3 bed)
+#                 efficiency (quick bed), each on 1 and 2 threads; the NLGS sweep alone
+#                 on a synthetic problem; the seed's Table 3 tamping case in its three
+#                 versions (hours; needs the table3 bed)
 #   make clean    remove build outputs, meshes and results (keeps the venv)
 #
 # Every step has real file dependencies: a second `make` does nothing. The default
