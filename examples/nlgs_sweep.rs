@@ -11,6 +11,7 @@
 
 use std::time::Instant;
 
+use ballast::geometry::random::SplitMix;
 use ballast::nscd::body_nlgs::{solve, BodyInverses, ContactRow};
 use ballast::nscd::{ErrorCheck, NlgsOptions, Stopping};
 use nalgebra::{Matrix3, Vector3};
@@ -35,14 +36,9 @@ fn main() {
         eprintln!("nlgs_sweep: needs at least 2 bodies and 1 sweep");
         std::process::exit(2);
     }
-    // xorshift64: the same problem on every run.
-    let mut seed: u64 = 12345;
-    let mut rnd = move || {
-        seed ^= seed << 13;
-        seed ^= seed >> 7;
-        seed ^= seed << 17;
-        (seed >> 11) as f64 / (1u64 << 53) as f64
-    };
+    // The project's seeded generator: the same problem on every run.
+    let mut random = SplitMix(12345);
+    let mut rnd = move || random.next_f64();
     let mut rows = Vec::new();
     for i in 0..bodies {
         for _ in 0..PER_BODY {
