@@ -35,9 +35,12 @@
       --stop-after, then --resume): on this VM the same 100 steps, run again minutes
       later, took up to 21-29 % longer, so versions run one after the other, an hour
       each, compare the machine's spells as much as the versions (docs/tamping.md).
+      Each turn's clocks are kept in DIR/version-N/turns/, and the tables end with
+      versions 5 against 4 turn by turn (the parallel part's efficiency in each).
   tamping_report.py table DIR
       the same tables from the versions finished so far in a bench directory DIR
-      (e.g. results/bench-tamping-table3), while the bench runs or after it stopped.
+      (e.g. results/bench-tamping-table3), while the bench runs or after it stopped;
+      before any version has finished, versions 5 against 4 over the turns run so far.
   tamping_report.py creep --pack BIN --nscd BIN --seeds N --out DIR [--until T] [--sweeps 50,100]
       the interpenetration the two DDM drivers leave in a bed at rest: the quick preset
       on the ensemble's beds (below; seeds 1 to N, reused from DIR) without the lift and
@@ -289,6 +292,66 @@ def checkpoint_step(directory):
         return 0
 
 
+def keep_turn_clocks(directory):
+    """Copies a run's checkpoint clocks to `turns/step-NNNNN.json` in its directory, so
+    that the time of every turn of an interleaved bench stays readable (the clocks file
+    itself is rewritten at every checkpoint)."""
+    clocks = os.path.join(directory, "checkpoint-clocks.json")
+    step = checkpoint_step(directory)
+    if step == 0:
+        return
+    turns = os.path.join(directory, "turns")
+    os.makedirs(turns, exist_ok=True)
+    shutil.copyfile(clocks, os.path.join(turns, "step-%05d.json" % step))
+
+
+def turn_times(directory):
+    """{step: phase times} of the clocks kept at a run's turns, of its summary at the
+    last step, and zeros at step 0 (the times add up from the run's start); empty
+    when no turn was kept."""
+    times = {}
+    turns = os.path.join(directory, "turns")
+    for name in sorted(os.listdir(turns)) if os.path.isdir(turns) else []:
+        with open(os.path.join(turns, name)) as f:
+            clocks = json.load(f)
+        times[clocks["step"]] = phase_times({"wall_time_s": dict(clocks["phases"]),
+                                             "figures": {"stepping_s": clocks["stepping_s"]}})
+    summary = os.path.join(directory, "summary.json")
+    if times and os.path.exists(summary):
+        s = read_summary(directory)
+        times[s["figures"]["steps"]] = phase_times(s)
+    if times:
+        times[0] = {k: 0.0 for k in next(iter(times.values()))}
+    return times
+
+
+def print_turns(out):
+    """Versions 5 against 4 turn by turn (the spans between the steps where both kept
+    their clocks): the parallel part's efficiency in each, a measure of how much the
+    machine's spells move it."""
+    t4 = turn_times(os.path.join(out, "version-4"))
+    t5 = turn_times(os.path.join(out, "version-5"))
+    steps = sorted(set(t4) & set(t5))
+    if len(steps) < 2:
+        return False
+    threads = VERSIONS[4][2] / VERSIONS[5][2]
+    print("\n## The parallel part turn by turn (versions 5 and 4, subdomain sweeps)\n")
+    print("| steps | version 4 (s) | version 5 (s) | efficiency |")
+    print("|---|---:|---:|---:|")
+    effs = []
+    for a, b in zip(steps, steps[1:]):
+        sub4 = t4[b]["sub"] - t4[a]["sub"]
+        sub5 = t5[b]["sub"] - t5[a]["sub"]
+        if sub4 <= 0 or sub5 <= 0:
+            continue
+        effs.append(sub5 / (threads * sub4))
+        print("| %d–%d | %.1f | %.1f | %.1f %% |" % (a + 1, b, sub4, sub5, 100 * effs[-1]))
+    if effs:
+        print("\nover %d turns: median %.1f %%, from %.1f to %.1f %%"
+              % (len(effs), 100 * statistics.median(effs), 100 * min(effs), 100 * max(effs)))
+    return True
+
+
 def parse_versions(text):
     """The bench's --versions list ("4,5"): known versions, each once, in the order given."""
     try:
@@ -343,9 +406,12 @@ def bench(nscd, preset, steps, out, repeat=1, fresh=False, versions=tuple(VERSIO
             finally:
                 if scene != SCENE:
                     os.remove(scene)
+            if stop_after is not None:
+                keep_turn_clocks(d)
             if stop_after is None:
                 runs[version].append(read_summary(d))
     print_tables(runs, preset, steps, note, repeat)
+    print_turns(out)
 
 
 def print_tables(runs, preset, steps, note, repeat=1):
@@ -450,6 +516,8 @@ def table(out):
         if os.path.exists(os.path.join(d, "summary.json")):
             runs[v] = [read_summary(d)]
     if not any(runs.values()):
+        if print_turns(out):
+            return
         sys.exit("tamping_report: %s: no finished version (no version-N/summary.json)" % out)
     first = next(r for r in runs.values() if r)[0]
     try:
@@ -459,6 +527,7 @@ def table(out):
     except (OSError, ValueError, KeyError):
         note = "binary not recorded"
     print_tables(runs, first["preset"], first["figures"]["steps"], note)
+    print_turns(out)
 
 
 def quick_tamping(nscd, packing, driver, *settings):
