@@ -278,6 +278,8 @@ def run_version(cmd, directory, inputs, resumable, stop_after=None):
     for stale in (summary, os.path.join(directory, "checkpoint.bin")):
         if os.path.exists(stale):
             os.remove(stale)
+    # The turns' clocks of an earlier run would mix with this one's.
+    shutil.rmtree(os.path.join(directory, "turns"), ignore_errors=True)
     with open(stamp_path, "w") as f:
         json.dump(stamp, f, indent=1)
     subprocess.run(cmd + ["--out", directory] + stop, check=True, stdout=subprocess.DEVNULL)
