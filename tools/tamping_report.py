@@ -408,10 +408,10 @@ def bench(nscd, preset, steps, out, repeat=1, fresh=False, versions=tuple(VERSIO
             finally:
                 if scene != SCENE:
                     os.remove(scene)
-            if stop_after is not None:
-                keep_turn_clocks(d)
             if stop_after is None:
                 runs[version].append(read_summary(d))
+            else:
+                keep_turn_clocks(d)
     print_tables(runs, preset, steps, note, repeat)
     print_turns(out)
 
