@@ -32,7 +32,8 @@ bench-nscd: $(RELEASE)/ballast-nscd $(STONE_MESHES) | $(VENV_STAMP)
 
 # The NLGS sweep alone on a synthetic problem of 118 000 contacts between 7 000 bodies
 # (examples/nlgs_sweep.rs; docs/ddm.md, "Drivers"): ns per contact and sweep with none,
-# 5 % and 20 % of the contacts pressed shut, on one thread, then the 20 % case twice at
+# 5 % and 20 % of the contacts pressed shut (µ = 1; the 20 % case also with µ = 100,
+# mostly sticking), on one thread, then the 20 % case twice at
 # once (one per core: do two sweeps share the memory bandwidth?). Seconds long; part of
 # `make bench`.
 SWEEP_BENCH_CASES := 0:1 0.05:1 0.2:1 0.2:100
