@@ -116,6 +116,31 @@ fn quick_bed_is_settled_dense_and_inside_its_box() {
         "coordination {coordination}"
     );
     assert!(figure(&f, "grains_steps_per_s") > 0.0);
+
+    // deposit.csv's settle figures: the last step passed the settle test, so its fastest
+    // body point is under 4 × settle_speed (20 mm/s), while the rained stones fell at
+    // metres per second; over the rain of the first layer the contacts dissipate what
+    // gravity gives the falling stones (the sum of ΔKE − work of gravity is negative).
+    let (header, rows) = read_csv(&quick().join("deposit.csv"));
+    let column = |name: &str| header.iter().position(|h| h == name).unwrap();
+    let (phase, rise, fastest) = (
+        column("phase"),
+        column("energy_rise_J"),
+        column("fastest_point_m_s"),
+    );
+    let last = rows.last().unwrap()[fastest];
+    assert!(
+        (0.0..0.02).contains(&last),
+        "last step's fastest point {last} m/s"
+    );
+    let most = rows.iter().map(|r| r[fastest]).fold(0.0, f64::max);
+    assert!(most > 0.5, "fastest point of the run {most} m/s");
+    let layer: f64 = rows
+        .iter()
+        .filter(|r| r[phase] == 0.0)
+        .map(|r| r[rise])
+        .sum();
+    assert!(layer < 0.0, "energy rise over the first layer {layer} J");
 }
 
 #[test]
@@ -1704,8 +1729,9 @@ fn a_frame_that_cannot_be_written_stops_the_run_at_once() {
 }
 
 /// A resumed run may shorten `deposit.max_phase_time` (a run-control key, like
-/// `output.checkpoint_every`): every phase from the checkpoint on ends by the new cap,
-/// those cut reported as capped, and the bed is written. Other keys stay refused.
+/// `deposit.finish_sweeps` and `output.checkpoint_every`, which it changes too): every
+/// phase from the checkpoint on ends by the new cap, those cut reported as capped, and
+/// the bed is written. Other keys stay refused.
 #[test]
 fn a_resumed_run_may_shorten_the_phase_cap() {
     let (work, scene) = small_box_scene("0.12 m", BOX_SLEEPER, BOX_LAYER_COMPACTION);
@@ -1735,6 +1761,7 @@ fn a_resumed_run_may_shorten_the_phase_cap() {
     let cap = 0.5;
     let resumed = pack(&resume)
         .args(["--set", &format!("deposit.max_phase_time=\"{cap} s\"")])
+        .args(["--set", "deposit.finish_sweeps=800"])
         .output()
         .unwrap();
     assert_success(&resumed);

@@ -79,6 +79,18 @@ pub const PLACEMENT_DRAWS: usize = 200;
 /// A settled bed has no body point faster than this many times `settle_speed`.
 pub const MAX_SPEED_FACTOR: f64 = 4.0;
 
+/// The largest speed of any point of a dynamic body, bounded by |v| + |ω| r with r
+/// its bounding radius (m/s; 0 with none): what the finishing phases' settle test
+/// holds under [`MAX_SPEED_FACTOR`] × `settle_speed`, and `deposit.csv`'s
+/// `fastest_point_m_s`.
+pub fn fastest_point_speed(bodies: &[Body]) -> f64 {
+    bodies
+        .iter()
+        .filter(|b| b.is_dynamic())
+        .map(|b| b.velocity.norm() + b.angular_velocity.norm() * b.shape.bounding_radius())
+        .fold(0.0, f64::max)
+}
+
 /// The axis-aligned box of `points` (lower and upper corners; `points` not empty).
 pub fn bounds(points: &[Point3<f64>]) -> (Point3<f64>, Point3<f64>) {
     let (mut lo, mut hi) = (points[0], points[0]);
@@ -586,10 +598,7 @@ impl Deposition {
         self.rms_speed(report.kinetic_energy) < limit
             && (!self.finishing
                 || (report.max_interpenetration < self.setup.max_overlap
-                    && self.bodies.iter().filter(|b| b.is_dynamic()).all(|b| {
-                        b.velocity.norm() + b.angular_velocity.norm() * b.shape.bounding_radius()
-                            < MAX_SPEED_FACTOR * limit
-                    })))
+                    && fastest_point_speed(&self.bodies) < MAX_SPEED_FACTOR * limit))
     }
 
     /// rms speed √(2 KE / Σm) of the dynamic bodies (m/s).

@@ -7,15 +7,20 @@
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use super::deposit::{Deposition, Observer, Role, StepRecord};
+use super::deposit::{fastest_point_speed, Deposition, Observer, Role, StepRecord};
 use super::resume::{PackCheckpoint, PACK_CHECKPOINT_FORMAT};
 use crate::nscd::body::Body;
 use crate::nscd::run::{grains_grid, Drawn};
 use crate::output::{CsvSeries, Grid, Progress, PvdWriter};
 use crate::{Error, Result};
 
-/// Columns of `deposit.csv`.
-const COLUMNS: [&str; 9] = [
+/// Columns of `deposit.csv`. `energy_rise_J` is the step's ΔKE − work of gravity and
+/// of the driven bodies: ≤ 0 for a converged Moreau–Jean step (θ = 1) whose contacts
+/// only dissipate; overlaps pushed open at the depenetration speed and a solve stopped
+/// on its sweep cap make it positive (docs/pack.md, "Final settle: the capped solve
+/// feeds the bed"). `fastest_point_m_s` is the settle test's fastest body point
+/// ([`fastest_point_speed`]).
+const COLUMNS: [&str; 11] = [
     "time_s",
     "phase",
     "stones",
@@ -25,6 +30,8 @@ const COLUMNS: [&str; 9] = [
     "kinetic_energy_J",
     "max_interpenetration_m",
     "max_contact_force_N",
+    "energy_rise_J",
+    "fastest_point_m_s",
 ];
 
 /// When and where checkpoints go.
@@ -158,6 +165,8 @@ impl Observer for Recorder {
             r.kinetic_energy,
             r.max_interpenetration,
             r.max_contact_force,
+            r.energy_rise,
+            fastest_point_speed(bodies),
         ];
         if let Err(e) = self.csv.push(&row) {
             self.failure = Some(e);

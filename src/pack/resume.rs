@@ -115,12 +115,16 @@ impl PackCheckpoint {
 }
 
 /// Keys of the merged scene that a resumed run may change: they say how long a phase
-/// may run and how often a checkpoint is taken, not what the bed is. A packing whose
-/// final settle sits at the solver's noise floor can so be resumed with a shorter
-/// `deposit.max_phase_time`: it ends at that time, reported as not settled. (Changing
-/// them makes the resumed run differ from an uninterrupted one with the old values.)
-pub const RUN_CONTROL_KEYS: [(&str, &str); 2] = [
+/// or a finishing solve may run and how often a checkpoint is taken, not what the bed
+/// is. A packing whose final settle sits at the solver's noise floor can so be resumed
+/// with a shorter `deposit.max_phase_time` (it ends at that time, reported as not
+/// settled), or with a higher `deposit.finish_sweeps`, so that its solves reach the
+/// tolerance instead of stopping on the cap (docs/pack.md, "Final settle: the capped
+/// solve feeds the bed"). (Changing them makes the resumed run differ from an
+/// uninterrupted one with the old values.)
+pub const RUN_CONTROL_KEYS: [(&str, &str); 3] = [
     ("deposit", "max_phase_time"),
+    ("deposit", "finish_sweeps"),
     ("output", "checkpoint_every"),
 ];
 
