@@ -17,7 +17,7 @@ use crate::{Error, Result};
 /// Columns of `deposit.csv`. `energy_rise_J` is the step's ΔKE − work of gravity and
 /// of the driven bodies: ≤ 0 for a converged Moreau–Jean step (θ = 1) whose contacts
 /// only dissipate; overlaps pushed open at the depenetration speed and a solve stopped
-/// on its sweep cap make it positive (docs/pack.md, "Final settle: the capped solve
+/// on its sweep cap can make it positive (docs/pack.md, "Final settle: the capped solve
 /// feeds the bed"). `fastest_point_m_s` is the settle test's fastest body point
 /// ([`fastest_point_speed`]).
 const COLUMNS: [&str; 11] = [
