@@ -4,6 +4,14 @@ deposit.csv).
   pack_report.py chart DIR OUT.png   deposition history and compactness per control box
   pack_report.py table DIR...        one markdown row per run (grains, d50, compactness,
                                      interpenetration, coordination, wall time)
+  pack_report.py settle DIR [FROM_S] per phase of deposit.csv (from simulated time FROM_S
+                                     on): steps, steps on the sweep cap, steps whose
+                                     energy rise
+                                     (ΔKE − work of gravity) is positive and their sum,
+                                     and the last step's kinetic energy, fastest body
+                                     point and deepest overlap: what a phase that did
+                                     not settle was doing (docs/pack.md, "Final settle:
+                                     the capped solve feeds the bed")
 """
 
 import csv
@@ -103,9 +111,41 @@ def table(directories):
         )
 
 
+def settle(directory, start=0.0):
+    summary, rows = load(directory)
+    # The scene's caps: a phase whose most sweeps is one of them stopped on it.
+    deposit = summary["inputs"]["deposit"]
+    caps = {deposit.get("max_sweeps", 100), deposit.get("finish_sweeps", 500)}
+    rows = [r for r in rows if r["time_s"] > start]
+    # deposit.csv numbers its phases in the order they first step (a stage's part after
+    # a strike-off is a phase of its own there), so they are named by time span.
+    print(f"{directory}: deposit.csv from t = {start} s")
+    print("| csv phase | t (s) | steps | on the sweep cap | energy rise > 0 (steps, sum mJ) "
+          "| last KE (mJ) | last fastest point (mm/s) | last deepest overlap (µm) |")
+    print("|---:|---|---:|---:|---:|---:|---:|---:|")
+    for index in sorted({int(r["phase"]) for r in rows}):
+        mine = [r for r in rows if int(r["phase"]) == index]
+        most = max(r["nlgs_sweeps"] for r in mine)
+        on_cap = sum(r["nlgs_sweeps"] == most for r in mine) if most in caps else 0
+        last = mine[-1]
+        # deposit.csv of runs before 2026-12-06 has neither column (NaN where a resumed
+        # run's rows before the resume were given them).
+        if "energy_rise_J" in last:
+            rises = [r["energy_rise_J"] for r in mine if r["energy_rise_J"] > 0]
+            rise = f"{len(rises)}, {1e3 * sum(rises):.1f}"
+            fastest = f"{1e3 * last['fastest_point_m_s']:.1f}"
+        else:
+            rise, fastest = "—", "—"
+        print(f"| {index} | {mine[0]['time_s']:.3f}–{last['time_s']:.3f} | {len(mine)} | "
+              f"{on_cap} (most {most:.0f}) | {rise} | {1e3 * last['kinetic_energy_J']:.3g} | "
+              f"{fastest} | {1e6 * last['max_interpenetration_m']:.1f} |")
+
+
 def main(argv):
     if len(argv) == 4 and argv[1] == "chart":
         chart(argv[2], argv[3])
+    elif len(argv) in (3, 4) and argv[1] == "settle":
+        settle(argv[2], float(argv[3]) if len(argv) == 4 else 0.0)
     elif len(argv) >= 3 and argv[1] == "table":
         table(argv[2:])
     else:
