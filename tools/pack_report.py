@@ -6,12 +6,11 @@ deposit.csv).
                                      interpenetration, coordination, wall time)
   pack_report.py settle DIR [FROM_S] per phase of deposit.csv (from simulated time FROM_S
                                      on): steps, steps on the sweep cap, steps whose
-                                     energy rise
-                                     (ΔKE − work of gravity) is positive and their sum,
-                                     and the last step's kinetic energy, fastest body
-                                     point and deepest overlap: what a phase that did
-                                     not settle was doing (docs/pack.md, "Final settle:
-                                     the capped solve feeds the bed")
+                                     energy rise (ΔKE − work of gravity) is positive and
+                                     their sum, and the last step's kinetic energy,
+                                     fastest body point and deepest overlap: what a phase
+                                     that did not settle was doing (docs/pack.md, "Final
+                                     settle: the capped solve feeds the bed")
 """
 
 import csv
@@ -113,7 +112,9 @@ def table(directories):
 
 def settle(directory, start=0.0):
     summary, rows = load(directory)
-    # The scene's caps: a phase whose most sweeps is one of them stopped on it.
+    # The scene's caps: a phase whose most sweeps is one of them stopped on it. They are
+    # the last run's (a run resumed with another `finish_sweeps` shows the phases before
+    # the resume as off the cap).
     deposit = summary["inputs"]["deposit"]
     caps = {deposit.get("max_sweeps", 100), deposit.get("finish_sweeps", 500)}
     rows = [r for r in rows if r["time_s"] > start]
@@ -128,8 +129,7 @@ def settle(directory, start=0.0):
         most = max(r["nlgs_sweeps"] for r in mine)
         on_cap = sum(r["nlgs_sweeps"] == most for r in mine) if most in caps else 0
         last = mine[-1]
-        # deposit.csv of runs before 2026-12-06 has neither column (NaN where a resumed
-        # run's rows before the resume were given them).
+        # deposit.csv of runs before 2026-12-06 has neither column.
         if "energy_rise_J" in last:
             rises = [r["energy_rise_J"] for r in mine if r["energy_rise_J"] > 0]
             rise = f"{len(rises)}, {1e3 * sum(rises):.1f}"
