@@ -381,6 +381,13 @@ impl Body {
             + 0.5 * rotational_energy(&self.inertia, &self.angular_velocity)
     }
 
+    /// An upper bound on the speed of any point of the body, |v| + |ω| r with r its
+    /// bounding radius (m/s): how far its points can move in a step (the detection
+    /// reach) and what a settled bed holds under a limit (`ballast-pack`).
+    pub fn point_speed_bound(&self) -> f64 {
+        self.velocity.norm() + self.angular_velocity.norm() * self.shape.bounding_radius()
+    }
+
     /// The hull vertices in world coordinates.
     pub fn world_vertices(&self) -> Vec<Point3<f64>> {
         let pose = self.pose();

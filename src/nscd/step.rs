@@ -312,8 +312,7 @@ impl MoreauJean {
             if matches!(b.motion, Motion::Static) {
                 0.0
             } else {
-                let speed =
-                    b.velocity.norm() + b.angular_velocity.norm() * b.shape.bounding_radius();
+                let speed = b.point_speed_bound();
                 let fall = if b.is_dynamic() {
                     dt * gravity.norm()
                 } else {

@@ -79,15 +79,14 @@ pub const PLACEMENT_DRAWS: usize = 200;
 /// A settled bed has no body point faster than this many times `settle_speed`.
 pub const MAX_SPEED_FACTOR: f64 = 4.0;
 
-/// The largest speed of any point of a dynamic body, bounded by |v| + |ω| r with r
-/// its bounding radius (m/s; 0 with none): what the finishing phases' settle test
-/// holds under [`MAX_SPEED_FACTOR`] × `settle_speed`, and `deposit.csv`'s
-/// `fastest_point_m_s`.
+/// The largest speed of any point of a dynamic body ([`Body::point_speed_bound`]; m/s,
+/// 0 with none): what the finishing phases' settle test holds under
+/// [`MAX_SPEED_FACTOR`] × `settle_speed`, and `deposit.csv`'s `fastest_point_m_s`.
 pub fn fastest_point_speed(bodies: &[Body]) -> f64 {
     bodies
         .iter()
         .filter(|b| b.is_dynamic())
-        .map(|b| b.velocity.norm() + b.angular_velocity.norm() * b.shape.bounding_radius())
+        .map(Body::point_speed_bound)
         .fold(0.0, f64::max)
 }
 
