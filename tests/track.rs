@@ -215,8 +215,9 @@ fn the_quick_track_runs_and_its_sensors_see_the_axle() {
 fn the_bed_settles_less_under_higher_friction() {
     let low = figures(quick());
     // At rest when the load starts: the sleeper sinks at under 2 mm/s (measured
-    // 0.84 mm/s, 1.04 mm/s since the bed's release runs 0.1 s; the bed read periodic, its end walls gone, sank at 5.6 mm/s, and a
-    // bed packed as rounded hulls at 44 mm/s).
+    // 0.84 mm/s, 1.04 mm/s since the bed's release runs 0.1 s; the bed read periodic,
+    // its end walls gone, sank at 5.6 mm/s, and a bed packed as rounded hulls at
+    // 44 mm/s).
     let sinking = figure(&low, "sleeper_velocity_after_settling_m_per_s");
     assert!(sinking.abs() < 2e-3, "{low}");
     let dir = common::shared_dir("track-mu-1.73");
