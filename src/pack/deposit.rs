@@ -87,7 +87,7 @@ pub const MAX_SPEED_FACTOR: f64 = 4.0;
 /// bed with its layer compacted passed its release on the first step, and when
 /// `ballast-nscd` restarted the bed a stone on the floor by the end wall slid 0.59 mm
 /// in 10 steps; held for 20 ms (0.1 g) the release passed at 19 steps with that stone
-/// still sliding (0.57 mm again); held for 0.1 s it ran 52 steps, the stone slid and
+/// still sliding (0.57 mm); held for 0.1 s it ran 52 steps, the stone slid and
 /// stopped within them, and the restart moved no point more than 0.14 mm
 /// (docs/pack.md, "Settled: not on a phase's first steps").
 pub const UNBALANCE_G: f64 = 0.02;
