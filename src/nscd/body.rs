@@ -216,12 +216,45 @@ impl Prescribed {
             + table
     }
 
+    /// The oscillating part of the displacement from t = 0: `A sin 2πf t`.
+    pub fn oscillation_at(&self, t: f64) -> Vector3<f64> {
+        self.amplitude * (std::f64::consts::TAU * self.frequency * t).sin()
+    }
+
     /// Whether it never moves (no velocity, no oscillation, no table).
     pub fn is_rest(&self) -> bool {
         self.velocity == Vector3::zeros()
             && (self.amplitude == Vector3::zeros() || self.frequency == 0.0)
             && self.table.is_none()
     }
+}
+
+/// A body hung on a driven anchor by a linear spring and dashpot (translation only):
+/// a tamping tine on its arm (its pieces one group, [`Spring::group`]). The drive moves the anchor as prescribed; the body follows
+/// through the spring, so a jam meets a force bounded by the spring's stretch instead of
+/// whatever a rigid drive needs to go through it.
+///
+/// The force on the body is `K (a − x) + C (v_a − v)` with `a` the anchor and `v_a` its
+/// velocity; the step integrates it with the θ-method, implicitly (Moreau–Jean for
+/// linear forces), so any stiffness is stable.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Spring {
+    /// How the anchor moves.
+    pub drive: Prescribed,
+    /// Where the anchor is at the start of the step (m): where the mass centre would
+    /// rest without load. The owner of the drive may set it step by step
+    /// ([`super::tamping::TampingMonitor::actuate`]); the step advances it otherwise.
+    pub anchor: Vector3<f64>,
+    /// The anchor at t = 0 (m).
+    pub rest: Vector3<f64>,
+    /// Stiffness K (N/m), the same along every axis: the whole tool's.
+    pub stiffness: f64,
+    /// Damping C (N·s/m): the whole tool's.
+    pub damping: f64,
+    /// The sprung bodies of one group are the pieces of one tool: they move as one
+    /// rigid body of their summed mass, held by the spring of the group's first body
+    /// (whose anchor, stiffness and damping count), and do not touch each other.
+    pub group: u32,
 }
 
 /// How a body moves.
@@ -231,6 +264,8 @@ pub enum Motion {
     Dynamic,
     /// By prescription, whatever the contacts.
     Driven(Prescribed),
+    /// By the dynamics, held to a driven anchor by a spring; it does not turn.
+    Sprung(Spring),
     /// Not at all.
     Static,
 }
@@ -338,9 +373,22 @@ impl Body {
         self
     }
 
-    /// Whether the dynamics moves it.
+    /// Whether the dynamics moves it (a free body: a stone, a lowered sleeper).
     pub fn is_dynamic(&self) -> bool {
         self.motion == Motion::Dynamic
+    }
+
+    /// Whether contacts can move it: dynamic or sprung.
+    pub fn is_movable(&self) -> bool {
+        matches!(self.motion, Motion::Dynamic | Motion::Sprung(_))
+    }
+
+    /// The spring group of a sprung body.
+    pub fn spring_group(&self) -> Option<u32> {
+        match &self.motion {
+            Motion::Sprung(s) => Some(s.group),
+            _ => None,
+        }
     }
 
     /// The world pose of the principal frame.
@@ -348,7 +396,8 @@ impl Body {
         Isometry3::from_parts(Translation3::from(self.position), self.orientation)
     }
 
-    /// 1/m (zero unless dynamic).
+    /// 1/m (zero unless dynamic; a sprung body's effective mass depends on the step,
+    /// [`Spring`]).
     pub fn inverse_mass(&self) -> f64 {
         if self.is_dynamic() {
             1.0 / self.mass
@@ -370,6 +419,14 @@ impl Body {
     /// The angular velocity in world axes.
     pub fn angular_velocity_world(&self) -> Vector3<f64> {
         self.orientation * self.angular_velocity
+    }
+
+    /// Kinetic energy ½ m v² of a sprung body (J); zero for any other.
+    pub fn sprung_kinetic_energy(&self) -> f64 {
+        match self.motion {
+            Motion::Sprung(_) => 0.5 * self.mass * self.velocity.norm_squared(),
+            _ => 0.0,
+        }
     }
 
     /// Kinetic energy ½ m v² + ½ ωᵀ I ω (J); zero unless dynamic.

@@ -22,7 +22,8 @@ use crate::contact::{ContactKey, ImpulseMemory};
 use crate::{Error, Result};
 
 /// The format tag.
-pub const CHECKPOINT_FORMAT: &str = "ballast-nscd checkpoint 1";
+/// 2: the tamping monitor's largest tine deflection (sprung tines).
+pub const CHECKPOINT_FORMAT: &str = "ballast-nscd checkpoint 2";
 
 pub use crate::output::CHECKPOINT_FILE;
 

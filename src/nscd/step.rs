@@ -32,7 +32,7 @@ use std::time::{Duration, Instant};
 
 use nalgebra::{Isometry3, Matrix3, Translation3, UnitQuaternion, Vector3};
 
-use super::body::{Body, Motion};
+use super::body::{Body, Motion, Spring};
 use super::body_nlgs::{self, BodyInverses, ContactRow};
 use super::nlgs::{NlgsOptions, NlgsReport};
 use crate::contact::{local_frame, Collider, ContactKey, ContactPoint, Detector, ImpulseMemory};
@@ -190,6 +190,11 @@ pub struct MoreauJean {
     pub ddm: Option<DdmSetup>,
     detector: Detector,
     owner: Vec<Option<u32>>,
+    /// Each body's index in the solve: its own, or for a sprung piece its tool's first
+    /// piece (the pieces of one tool move as one body).
+    lead: Vec<usize>,
+    /// A tool's mass (kg), at its first piece's index.
+    tool_mass: Vec<f64>,
     decomposition: Decomposition,
     memory: ImpulseMemory,
     points: Vec<ContactPoint>,
@@ -218,6 +223,8 @@ impl MoreauJean {
             ddm: None,
             detector: Detector::new(params.alert_distance),
             owner: Vec::new(),
+            lead: Vec::new(),
+            tool_mass: Vec::new(),
             decomposition: Decomposition::default(),
             memory: ImpulseMemory::new(),
             points: Vec::new(),
@@ -297,7 +304,7 @@ impl MoreauJean {
     pub fn step(&mut self, bodies: &mut [Body], time: f64, friction: &FrictionTable) -> StepReport {
         let StepParams { dt, gravity, .. } = self.params;
         let mut phase_times = [Duration::ZERO; 4];
-        let kinetic_before: f64 = bodies.iter().map(Body::kinetic_energy).sum();
+        let kinetic_before: f64 = bodies.iter().map(balance_energy).sum();
 
         // 1. Detect at the start configuration.
         let clock = Instant::now();
@@ -313,7 +320,7 @@ impl MoreauJean {
                 0.0
             } else {
                 let speed = b.point_speed_bound();
-                let fall = if b.is_dynamic() {
+                let fall = if b.is_movable() {
                     dt * gravity.norm()
                 } else {
                     0.0
@@ -323,6 +330,7 @@ impl MoreauJean {
         }));
         let poses: Vec<Isometry3<f64>> = bodies.iter().map(Body::pose).collect();
         detect_into(&mut self.detector, bodies, &poses, &mut self.points);
+        self.find_tools(bodies);
         self.order_points(bodies);
         phase_times[0] = clock.elapsed();
 
@@ -384,6 +392,12 @@ impl MoreauJean {
                 }
             };
             phase_times[2] += clock.elapsed();
+            // The other pieces of a tool move with its first.
+            for (k, &lead) in self.lead.iter().enumerate() {
+                if lead != k {
+                    self.velocity[k] = self.velocity[lead];
+                }
+            }
             if pass == self.params.end_checks {
                 break nlgs;
             }
@@ -413,6 +427,23 @@ impl MoreauJean {
         let clock = Instant::now();
         let mut external_work = 0.0;
         for (k, body) in bodies.iter_mut().enumerate() {
+            if let Motion::Sprung(spring) = &body.motion {
+                let (displacement, _) = self.theta_motion(k, body, &start_velocity);
+                // The spring holds the tool: its force acts once, on the first piece.
+                let force = if self.lead[k] == k {
+                    spring_force(spring, body, &self.velocity[k], time, self.params)
+                } else {
+                    Vector3::zeros()
+                };
+                let anchor_move = spring.drive.displacement(time, time + dt);
+                external_work += (force + body.mass * gravity).dot(&displacement);
+                body.position += displacement;
+                body.velocity = self.velocity[k];
+                if let Motion::Sprung(s) = &mut body.motion {
+                    s.anchor += anchor_move;
+                }
+                continue;
+            }
             match body.motion {
                 Motion::Dynamic => {
                     let w_new = body.orientation.inverse() * self.angular[k];
@@ -430,7 +461,8 @@ impl MoreauJean {
                 Motion::Driven(_) => {
                     body.position += self.theta_motion(k, body, &start_velocity).0;
                 }
-                Motion::Static => {}
+                // Moved above.
+                Motion::Sprung(_) | Motion::Static => {}
             }
         }
         // Work of driven bodies: the impulse they give times their velocity.
@@ -488,6 +520,7 @@ impl MoreauJean {
                 .map(|(c, r)| (c.key, r)),
         );
         let kinetic_energy: f64 = bodies.iter().map(Body::kinetic_energy).sum();
+        let balance_after: f64 = bodies.iter().map(balance_energy).sum();
         phase_times[3] = clock.elapsed();
         StepReport {
             contacts: self.points.len(),
@@ -499,7 +532,7 @@ impl MoreauJean {
             max_contact_force: max_normal / self.params.dt,
             kinetic_energy,
             external_work,
-            energy_rise: kinetic_energy - kinetic_before - external_work,
+            energy_rise: balance_after - kinetic_before - external_work,
             phase_times,
             solve_split,
             interface_contacts,
@@ -558,7 +591,8 @@ impl MoreauJean {
     ) -> (Vector3<f64>, UnitQuaternion<f64>) {
         let StepParams { dt, theta, .. } = self.params;
         match body.motion {
-            Motion::Dynamic => {
+            // A sprung body's angular velocity is zero: it does not turn.
+            Motion::Dynamic | Motion::Sprung(_) => {
                 let w_new = body.orientation.inverse() * self.angular[k];
                 let w_theta = (1.0 - theta) * body.angular_velocity + theta * w_new;
                 (
@@ -571,6 +605,29 @@ impl MoreauJean {
                 body.orientation,
             ),
             Motion::Static => (Vector3::zeros(), body.orientation),
+        }
+    }
+
+    /// Finds the tools: the sprung bodies of one group move as one, solved as the
+    /// group's first body with the group's mass ([`Self::lead`]).
+    fn find_tools(&mut self, bodies: &[Body]) {
+        self.lead.clear();
+        self.tool_mass.clear();
+        self.tool_mass.resize(bodies.len(), 0.0);
+        let mut first: Vec<Option<usize>> = Vec::new();
+        for (k, body) in bodies.iter().enumerate() {
+            let lead = match body.spring_group() {
+                Some(group) => {
+                    let g = group as usize;
+                    if first.len() <= g {
+                        first.resize(g + 1, None);
+                    }
+                    *first[g].get_or_insert(k)
+                }
+                None => k,
+            };
+            self.tool_mass[lead] += body.mass;
+            self.lead.push(lead);
         }
     }
 
@@ -590,12 +647,17 @@ impl MoreauJean {
         if let Some(setup) = &self.ddm {
             // Grains to subdomains by mass centre.
             let centres: Vec<Vector3<f64>> = bodies.iter().map(|b| b.position).collect();
-            let movable: Vec<bool> = bodies.iter().map(Body::is_dynamic).collect();
+            let movable: Vec<bool> = bodies.iter().map(Body::is_movable).collect();
             self.owner = setup.partitioning.assign(&centres, &movable);
             let pairs: Vec<[usize; 2]> = self
                 .points
                 .iter()
-                .map(|c| [c.key.body_a as usize, c.key.body_b as usize])
+                .map(|c| {
+                    [
+                        self.lead[c.key.body_a as usize],
+                        self.lead[c.key.body_b as usize],
+                    ]
+                })
                 .collect();
             let (order, decomposition) =
                 ddm::decompose(&pairs, &self.owner, setup.partitioning.subdomains());
@@ -623,7 +685,7 @@ impl MoreauJean {
         self.angular.clear();
         self.inverse_mass.clear();
         self.inverse_inertia.clear();
-        for body in bodies.iter_mut() {
+        for (k, body) in bodies.iter_mut().enumerate() {
             match &body.motion {
                 Motion::Dynamic => {
                     let free = body.velocity + dt * gravity;
@@ -635,6 +697,27 @@ impl MoreauJean {
                     body.velocity = prescribed.velocity_at(time + dt);
                     self.velocity.push(body.velocity);
                     self.angular.push(Vector3::zeros());
+                }
+                Motion::Sprung(spring) => {
+                    let lead = self.lead[k];
+                    if lead == k {
+                        let (free, effective_mass) = sprung_free_velocity(
+                            spring,
+                            body,
+                            self.tool_mass[k],
+                            time,
+                            self.params,
+                        );
+                        self.velocity.push(free);
+                        self.inverse_mass.push(1.0 / effective_mass);
+                    } else {
+                        // Solved as its tool's first piece (no row refers to it).
+                        self.velocity.push(self.velocity[lead]);
+                        self.inverse_mass.push(0.0);
+                    }
+                    self.angular.push(Vector3::zeros());
+                    self.inverse_inertia.push(Matrix3::zeros());
+                    continue;
                 }
                 Motion::Static => {
                     self.velocity.push(Vector3::zeros());
@@ -664,7 +747,7 @@ impl MoreauJean {
                 (predicted / (theta * dt)).max(-self.params.depenetration_speed)
             };
             self.rows.push(ContactRow {
-                bodies: [c.key.body_a, c.key.body_b],
+                bodies: [self.lead[a] as u32, self.lead[b] as u32],
                 frame,
                 arms,
                 shift,
@@ -819,8 +902,77 @@ fn detect_into(
     let colliders: Vec<&Collider> = bodies.iter().map(|b| &b.shape.collider).collect();
     // Pairs without a moving grain (driven against fixed, two pieces of one tool) carry
     // no impulse that could change anything: skipped.
-    let movable: Vec<bool> = bodies.iter().map(Body::is_dynamic).collect();
+    let movable: Vec<bool> = bodies.iter().map(Body::is_movable).collect();
+    let start = out.len();
     detector.detect(&colliders, poses, &movable, out);
+    // Two sprung pieces of one tool hang on the same drive: they do not touch.
+    let mut k = start;
+    for i in start..out.len() {
+        let key = out[i].key;
+        let (a, b) = (key.body_a as usize, key.body_b as usize);
+        let group = bodies[a].spring_group();
+        if group.is_none() || group != bodies[b].spring_group() {
+            out[k] = out[i];
+            k += 1;
+        }
+    }
+    out.truncate(k);
+}
+
+/// The free velocity of a sprung body (of `mass`: its tool's) over the step from `time`
+/// (its velocity at the end with no contact impulse) and its effective mass
+/// `m + hθC + h²θ²K`: the θ-method on
+/// `m v̇ = m g + K (a − x) + C (v_a − v)` with the anchor `a` moving as its drive
+/// prescribes (Moreau–Jean for linear forces; with θ = 1 implicit Euler). The contact
+/// impulse `p` then changes the velocity by `p / (m + hθC + h²θ²K)`.
+fn sprung_free_velocity(
+    spring: &Spring,
+    body: &Body,
+    mass: f64,
+    time: f64,
+    params: StepParams,
+) -> (Vector3<f64>, f64) {
+    let StepParams {
+        dt: h,
+        theta,
+        gravity,
+        ..
+    } = params;
+    let (k, c, m, v) = (spring.stiffness, spring.damping, mass, body.velocity);
+    let anchor_theta = spring.anchor + theta * spring.drive.displacement(time, time + h);
+    let anchor_velocity =
+        (1.0 - theta) * spring.drive.velocity_at(time) + theta * spring.drive.velocity_at(time + h);
+    let stretch = body.position - anchor_theta + theta * h * (1.0 - theta) * v;
+    let momentum =
+        m * v + h * m * gravity - h * c * ((1.0 - theta) * v - anchor_velocity) - h * k * stretch;
+    let effective = m + h * theta * c + h * h * theta * theta * k;
+    (momentum / effective, effective)
+}
+
+/// The θ-average of a sprung body's spring and dashpot force over the step from `time`,
+/// with `velocity` its velocity at the end (before the update moves the body): the
+/// force whose work, with gravity's, enters the step's energy balance.
+fn spring_force(
+    spring: &Spring,
+    body: &Body,
+    velocity: &Vector3<f64>,
+    time: f64,
+    params: StepParams,
+) -> Vector3<f64> {
+    let StepParams { dt: h, theta, .. } = params;
+    let x_end = body.position + h * ((1.0 - theta) * body.velocity + theta * velocity);
+    let a_end = spring.anchor + spring.drive.displacement(time, time + h);
+    let x_theta = (1.0 - theta) * body.position + theta * x_end;
+    let a_theta = (1.0 - theta) * spring.anchor + theta * a_end;
+    let v_theta = (1.0 - theta) * body.velocity + theta * velocity;
+    let va_theta =
+        (1.0 - theta) * spring.drive.velocity_at(time) + theta * spring.drive.velocity_at(time + h);
+    spring.stiffness * (a_theta - x_theta) + spring.damping * (va_theta - v_theta)
+}
+
+/// The kinetic energy the step's balance counts: the free bodies' and the sprung ones'.
+fn balance_energy(body: &Body) -> f64 {
+    body.kinetic_energy() + body.sprung_kinetic_energy()
 }
 
 /// The keys of `contacts` (for tests of persistence).
@@ -831,7 +983,7 @@ pub fn contact_keys(contacts: &[SolvedContact]) -> Vec<ContactKey> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::nscd::body::BodyShape;
+    use crate::nscd::body::{BodyShape, Prescribed};
     use crate::nscd::nlgs::{ErrorCheck, Stopping};
     use std::sync::Arc;
 
@@ -918,5 +1070,167 @@ mod tests {
             "{}",
             free[1].angular_velocity
         );
+    }
+
+    /// A cube of 1 kg (0.1 m, 1000 kg/m³) on a spring of `stiffness` to an anchor at
+    /// its centre, `z` above the origin, its drive at rest.
+    fn sprung_cube(stiffness: f64, damping_ratio: f64, z: f64, group: u32) -> Body {
+        let cube = Arc::new(BodyShape::cuboid(Vector3::repeat(0.1)).unwrap());
+        let mut body = Body::dynamic("tine", cube, 1000.0, 0, Isometry3::translation(0.0, 0.0, z))
+            .translation_only();
+        body.motion = Motion::Sprung(Spring {
+            drive: Prescribed::default(),
+            anchor: body.position,
+            rest: body.position,
+            stiffness,
+            damping: 2.0 * damping_ratio * (stiffness * body.mass).sqrt(),
+            group,
+        });
+        body
+    }
+
+    fn sprung_params(theta: f64, gravity: f64) -> StepParams {
+        StepParams {
+            dt: 1e-4,
+            theta,
+            gravity: Vector3::new(0.0, 0.0, -gravity),
+            alert_distance: 1e-3,
+            depenetration_speed: 0.0,
+            period: None,
+            end_checks: 0,
+        }
+    }
+
+    fn exact_options() -> NlgsOptions {
+        NlgsOptions {
+            stopping: Stopping::Tolerance {
+                tolerance: 1e-14,
+                max_sweeps: 200,
+            },
+            error_check: ErrorCheck::EverySweep,
+        }
+    }
+
+    /// Without contacts a sprung body is a linear oscillator: with θ = ½ (the
+    /// trapezoidal rule) it keeps ½mv² + ½Kx² to rounding and rings at ω = √(K/m)
+    /// with the rule's phase lag, ω t (ωh)²/12 (8 × 10⁻⁶ of a radian per radian here);
+    /// with θ = 1 and damping it comes to rest where the spring carries its weight,
+    /// mg/K under the anchor.
+    #[test]
+    fn a_sprung_body_rings_at_its_frequency_and_rests_under_its_weight() {
+        let (k, x0) = (1e4, 1e-3);
+        let mut bodies = vec![sprung_cube(k, 0.0, 0.0, 0)];
+        bodies[0].position.x = x0;
+        let mut engine = MoreauJean::new(sprung_params(0.5, 0.0), exact_options());
+        let friction = FrictionTable::uniform(1, 0.5);
+        let omega = (k / bodies[0].mass).sqrt();
+        let energy = |b: &Body| {
+            0.5 * b.mass * b.velocity.norm_squared() + 0.5 * k * b.position.norm_squared()
+        };
+        let e0 = energy(&bodies[0]);
+        for step in 0..1000 {
+            let report = engine.step(&mut bodies, step as f64 * 1e-4, &friction);
+            // The spring's work is the only work: the balance closes.
+            assert!(report.energy_rise.abs() < 1e-12, "{}", report.energy_rise);
+        }
+        let t = 0.1;
+        let lag = omega * t * (omega * 1e-4f64).powi(2) / 12.0;
+        let x = bodies[0].position.x;
+        assert!((x - x0 * (omega * t - lag).cos()).abs() < 1e-12, "x = {x}");
+        assert!(
+            (x - x0 * (omega * t).cos()).abs() > 1e-9,
+            "the lag is measured"
+        );
+        assert!((energy(&bodies[0]) / e0 - 1.0).abs() < 1e-12);
+
+        let mut bodies = vec![sprung_cube(k, 0.7, 0.0, 0)];
+        let mut engine = MoreauJean::new(sprung_params(1.0, 9.81), exact_options());
+        for step in 0..20_000 {
+            engine.step(&mut bodies, step as f64 * 1e-4, &friction);
+        }
+        let sag = -bodies[0].mass * 9.81 / k;
+        assert!(
+            (bodies[0].position.z - sag).abs() < 1e-12,
+            "{}",
+            bodies[0].position.z
+        );
+    }
+
+    /// A tool of two sprung pieces whose drive goes on into a rigid floor presses on it
+    /// with its spring's stretch, K δ + mg (m both pieces' mass), whatever the time
+    /// step: the force a jam meets is bounded by the hold, where a driven body would
+    /// push with whatever the solve gives. Only one piece touches the floor; the other
+    /// moves with it.
+    #[test]
+    fn a_sprung_tool_driven_into_a_floor_presses_with_its_springs_stretch() {
+        let (k, v, steps) = (1e4, 0.1, 500);
+        let floor = Body::fixed(
+            "floor",
+            Arc::new(BodyShape::half_space(Vector3::z_axis())),
+            0,
+            Isometry3::identity(),
+            Motion::Static,
+        );
+        // One piece resting on the floor (its half-height is 0.05 m), the other beside
+        // it 10 mm higher; the anchors where they are.
+        let mut second = sprung_cube(k, 1.0, 0.06, 0);
+        second.position.x = 0.1;
+        if let Motion::Sprung(s) = &mut second.motion {
+            s.anchor = second.position;
+        }
+        let mut bodies = vec![floor, sprung_cube(k, 1.0, 0.05, 0), second];
+        let mut engine = MoreauJean::new(sprung_params(1.0, 9.81), exact_options());
+        let friction = FrictionTable::uniform(1, 0.5);
+        let mut force = 0.0;
+        for step in 0..20_000 {
+            for body in &mut bodies[1..] {
+                if let Motion::Sprung(s) = &mut body.motion {
+                    s.drive.velocity.z = if step < steps { -v } else { 0.0 };
+                }
+            }
+            force = engine
+                .step(&mut bodies, step as f64 * 1e-4, &friction)
+                .max_contact_force;
+        }
+        let Motion::Sprung(s) = &bodies[1].motion else {
+            unreachable!()
+        };
+        let overshoot = v * steps as f64 * 1e-4;
+        assert!(
+            (s.anchor.z - (0.05 - overshoot)).abs() < 1e-12,
+            "{}",
+            s.anchor.z
+        );
+        let expected = k * overshoot + (bodies[1].mass + bodies[2].mass) * 9.81;
+        assert!(
+            (force / expected - 1.0).abs() < 1e-9,
+            "{force} N against {expected} N"
+        );
+        assert!(
+            (bodies[1].position.z - 0.05).abs() < 1e-9,
+            "{}",
+            bodies[1].position.z
+        );
+        assert!(
+            (bodies[2].position.z - 0.06).abs() < 1e-9,
+            "{}",
+            bodies[2].position.z
+        );
+        assert_eq!(bodies[2].velocity, bodies[1].velocity);
+    }
+
+    /// Two sprung pieces of one tool do not touch each other; of two tools they do.
+    #[test]
+    fn sprung_pieces_of_one_group_do_not_touch() {
+        let touching = |group: u32| {
+            let bodies = vec![
+                sprung_cube(1e4, 0.0, 0.0, 0),
+                sprung_cube(1e4, 0.0, 0.09, group),
+            ];
+            let mut engine = MoreauJean::new(sprung_params(1.0, 0.0), exact_options());
+            engine.detect(&bodies).len()
+        };
+        assert_eq!(touching(0), 0);
+        assert!(touching(1) > 0);
     }
 }
