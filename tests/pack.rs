@@ -1535,8 +1535,10 @@ fn sprung_tines_give_and_resume_to_the_same_state() {
     // In the ballast the tines are pushed off their drive (a rigid drive: 0; whole
     // quick runs on eight beds, 2026-12-06: 8.4 to 12 mm), by less than the 30 mm
     // between a tine and the sleeper at the start.
-    let deflection = summary["figures"]["max_tine_deflection_m"].as_f64().unwrap();
-    assert!((1e-4..0.02).contains(&deflection), "{deflection} m");
+    let deflection = summary["figures"]["max_tine_deflection_m"]
+        .as_f64()
+        .unwrap();
+    assert!((1e-4..0.03).contains(&deflection), "{deflection} m");
 }
 
 /// The files of a finished packing run that a resumed run must write identically.
