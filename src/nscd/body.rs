@@ -257,6 +257,18 @@ pub struct Spring {
     pub group: u32,
 }
 
+impl Spring {
+    /// The anchor's θ-averages over the step from `time` to `time + h`: its position
+    /// `(1 − θ) a_i + θ a_{i+1}` and its velocity `(1 − θ) v_a,i + θ v_a,i+1`.
+    pub fn anchor_theta(&self, time: f64, h: f64, theta: f64) -> (Vector3<f64>, Vector3<f64>) {
+        let drive = &self.drive;
+        (
+            self.anchor + theta * drive.displacement(time, time + h),
+            (1.0 - theta) * drive.velocity_at(time) + theta * drive.velocity_at(time + h),
+        )
+    }
+}
+
 /// How a body moves.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Motion {

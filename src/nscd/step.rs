@@ -939,9 +939,7 @@ fn sprung_free_velocity(
         ..
     } = params;
     let (k, c, m, v) = (spring.stiffness, spring.damping, mass, body.velocity);
-    let anchor_theta = spring.anchor + theta * spring.drive.displacement(time, time + h);
-    let anchor_velocity =
-        (1.0 - theta) * spring.drive.velocity_at(time) + theta * spring.drive.velocity_at(time + h);
+    let (anchor_theta, anchor_velocity) = spring.anchor_theta(time, h, theta);
     let stretch = body.position - anchor_theta + theta * h * (1.0 - theta) * v;
     let momentum =
         m * v + h * m * gravity - h * c * ((1.0 - theta) * v - anchor_velocity) - h * k * stretch;
@@ -961,12 +959,9 @@ fn spring_force(
 ) -> Vector3<f64> {
     let StepParams { dt: h, theta, .. } = params;
     let x_end = body.position + h * ((1.0 - theta) * body.velocity + theta * velocity);
-    let a_end = spring.anchor + spring.drive.displacement(time, time + h);
     let x_theta = (1.0 - theta) * body.position + theta * x_end;
-    let a_theta = (1.0 - theta) * spring.anchor + theta * a_end;
     let v_theta = (1.0 - theta) * body.velocity + theta * velocity;
-    let va_theta =
-        (1.0 - theta) * spring.drive.velocity_at(time) + theta * spring.drive.velocity_at(time + h);
+    let (a_theta, va_theta) = spring.anchor_theta(time, h, theta);
     spring.stiffness * (a_theta - x_theta) + spring.damping * (va_theta - v_theta)
 }
 
