@@ -68,6 +68,50 @@ fn a_scene_of_another_tool_is_refused_by_its_first_unknown_key() {
     common::assert_one_line_error(&output, 1, &["valid_presets.toml", "unknown key dt"]);
 }
 
+/// Bad `[tamping]` keys are one line naming the key as the scene spells it
+/// (`tamping.tine_damping`, once), before any packing is read.
+#[test]
+fn bad_tamping_keys_give_one_line_errors() {
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/tamping.toml");
+    for (set, needles) in [
+        (
+            "tamping.tine_damping=-1",
+            ["key tamping.tine_damping:", "critical"],
+        ),
+        (
+            "tamping.tine_stiffness=\"-1 MN/m\"",
+            ["key tamping.tine_stiffness:", "positive"],
+        ),
+        (
+            "tamping.tine_stiffness=\"1 MPa\"",
+            ["key tamping.tine_stiffness:", "not a stiffness"],
+        ),
+        (
+            "tamping.tine_scale=-1",
+            ["key tamping.tine_scale:", "positive"],
+        ),
+        (
+            "tamping.squeeze_time=\"1 ms\"",
+            ["key tamping.squeeze_time:", "tamping.ramp"],
+        ),
+    ] {
+        let output = run(
+            BINARIES[1].1,
+            &[
+                scene.to_str().unwrap(),
+                "--preset",
+                "quick",
+                "--set",
+                set,
+                "--set",
+                "packing.file=\"/no/such/packing.toml\"",
+            ],
+        );
+        let line = common::assert_one_line_error(&output, 1, &needles);
+        assert!(!line.contains("tamping.tamping"), "{line}");
+    }
+}
+
 #[test]
 fn a_missing_scene_file_is_named() {
     for (_, binary) in &BINARIES[..3] {

@@ -29,8 +29,9 @@
 //!
 //! By default the tines follow their drive exactly (infinite stiffness), so the
 //! vibration's 4 mm goes through a jam whatever force that takes. With
-//! `tine_stiffness` each tine piece hangs on its drive by a spring ([`Spring`]): the
-//! drive moves as above, the tine follows with the compliance of its arm. ASSUMED:
+//! `tine_stiffness` each tine (its pieces one body) hangs on its drive by a spring
+//! ([`Spring`]): the drive moves as above, the tine follows with the compliance of its
+//! arm. ASSUMED:
 //! 10 MN/m is the order of a 0.5 m steel arm of 40 × 80 mm in bending (3EI/L³ = 8.6
 //! MN/m); `tine_damping` 0.1 of critical; the tine's mass from its mesh at
 //! `tine_density` (steel).
@@ -200,7 +201,7 @@ impl Validate for TampingSpec {
             v.check("sleeper", k >= 1, "sleepers are numbered from 1");
         }
         v.check(
-            "tamping.tine_scale",
+            "tine_scale",
             self.tine_scale > 0.0 && self.tine_scale.is_finite(),
             "must be positive",
         );
@@ -217,7 +218,7 @@ impl Validate for TampingSpec {
             v.positive("tine_stiffness", k);
         }
         v.check(
-            "tamping.tine_damping",
+            "tine_damping",
             self.tine_damping >= 0.0 && self.tine_damping.is_finite(),
             "must be zero or positive (a fraction of critical damping)",
         );
@@ -233,12 +234,12 @@ impl Validate for TampingSpec {
         v.check("cycles", self.cycles >= 1, "must be at least 1");
         v.check("sample_every", self.sample_every >= 1, "must be at least 1");
         v.check(
-            "tamping.squeeze_time",
+            "squeeze_time",
             self.squeeze_time.si() > self.ramp.si(),
             "must be longer than tamping.ramp",
         );
         v.check(
-            "tamping.squeeze",
+            "squeeze",
             self.squeeze.si() + self.amplitude.si() < self.gap.si(),
             "the squeeze plus the vibration amplitude must stay below tamping.gap (a tine \
              never reaches the sleeper: two driven bodies do not interact)",
