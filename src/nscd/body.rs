@@ -230,9 +230,10 @@ impl Prescribed {
 }
 
 /// A body hung on a driven anchor by a linear spring and dashpot (translation only):
-/// a tamping tine on its arm (its pieces one group, [`Spring::group`]). The drive moves the anchor as prescribed; the body follows
-/// through the spring, so a jam meets a force bounded by the spring's stretch instead of
-/// whatever a rigid drive needs to go through it.
+/// a tamping tine on its arm (its pieces one group, [`Spring::group`]). The drive moves
+/// the anchor as prescribed; the body follows through the spring, so a jam meets a
+/// force bounded by the spring's stretch instead of whatever a rigid drive needs to go
+/// through it.
 ///
 /// The force on the body is `K (a − x) + C (v_a − v)` with `a` the anchor and `v_a` its
 /// velocity; the step integrates it with the θ-method, implicitly (Moreau–Jean for
