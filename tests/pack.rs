@@ -1386,16 +1386,8 @@ fn a_killed_tamping_run_resumes_to_the_same_state() {
         assert!(summary["wall_time_s"]["solve"].as_f64().unwrap() > solve(&saved["phases"]));
     }
     assert_eq!(clocks(&killed)["pieces"], 2);
-    // `files` of `dir` byte for byte as the run left alone wrote them.
-    let same_as_whole = |dir: &Path, files: &[&str], after: &str| {
-        for file in files {
-            let (a, b) = (
-                std::fs::read(whole.join(file)).unwrap(),
-                std::fs::read(dir.join(file)).unwrap(),
-            );
-            assert!(a == b, "{file} differs after {after}");
-        }
-    };
+    let same_as_whole =
+        |dir: &Path, files: &[&str], after: &str| assert_same_bytes(&whole, dir, files, after);
     same_as_whole(
         &killed,
         &[
@@ -1523,22 +1515,28 @@ fn sprung_tines_give_and_resume_to_the_same_state() {
             .output()
             .unwrap(),
     );
-    for file in ["checkpoint.bin", "residuals.csv", "tamping.csv"] {
-        assert!(
-            std::fs::read(whole.join(file)).unwrap() == std::fs::read(paused.join(file)).unwrap(),
-            "{file} differs after --stop-after and --resume"
-        );
-    }
-    let summary: Value =
-        serde_json::from_str(&std::fs::read_to_string(whole.join("summary.json")).unwrap())
-            .unwrap();
+    assert_same_bytes(
+        &whole,
+        &paused,
+        &["checkpoint.bin", "residuals.csv", "tamping.csv"],
+        "--stop-after and --resume",
+    );
     // In the ballast the tines are pushed off their drive (a rigid drive: 0; whole
     // quick runs on eight beds, 2026-12-06: 8.4 to 12 mm), by less than the 30 mm
     // between a tine and the sleeper at the start.
-    let deflection = summary["figures"]["max_tine_deflection_m"]
-        .as_f64()
-        .unwrap();
+    let deflection = figure(&figures(&whole), "max_tine_deflection_m");
     assert!((1e-4..0.03).contains(&deflection), "{deflection} m");
+}
+
+/// `files` of `dir` byte for byte as the run left alone wrote them in `whole`.
+fn assert_same_bytes(whole: &Path, dir: &Path, files: &[&str], after: &str) {
+    for file in files {
+        let (a, b) = (
+            std::fs::read(whole.join(file)).unwrap(),
+            std::fs::read(dir.join(file)).unwrap(),
+        );
+        assert!(a == b, "{file} differs after {after}");
+    }
 }
 
 /// The files of a finished packing run that a resumed run must write identically.
