@@ -903,20 +903,15 @@ fn detect_into(
     // Pairs without a moving grain (driven against fixed, two pieces of one tool) carry
     // no impulse that could change anything: skipped.
     let movable: Vec<bool> = bodies.iter().map(Body::is_movable).collect();
-    let start = out.len();
     detector.detect(&colliders, poses, &movable, out);
-    // Two sprung pieces of one tool hang on the same drive: they do not touch.
-    let mut k = start;
-    for i in start..out.len() {
-        let key = out[i].key;
-        let (a, b) = (key.body_a as usize, key.body_b as usize);
-        let group = bodies[a].spring_group();
-        if group.is_none() || group != bodies[b].spring_group() {
-            out[k] = out[i];
-            k += 1;
-        }
+    // Two sprung pieces of one tool hang on the same drive: they do not touch. (Scenes
+    // without sprung bodies, all but tamping with tine_stiffness, skip the pass.)
+    if bodies.iter().any(|b| b.spring_group().is_some()) {
+        out.retain(|c| {
+            let group = bodies[c.key.body_a as usize].spring_group();
+            group.is_none() || group != bodies[c.key.body_b as usize].spring_group()
+        });
     }
-    out.truncate(k);
 }
 
 /// The free velocity of a sprung body (of `mass`: its tool's) over the step from `time`
