@@ -1698,6 +1698,57 @@ fn a_killed_packing_resumes_to_the_same_bed_from_every_stage() {
     }
 }
 
+/// A checkpoint taken by wall time (`output.checkpoint_wall_every`, the step count set
+/// out of reach) lands on whatever step the clock says; a run killed after one resumes
+/// to the bed of a run left alone (which, at the default 30 min, wrote no checkpoint),
+/// bit for bit, and the resumed run may change the key.
+#[cfg(unix)]
+#[test]
+fn a_packing_checkpointed_by_wall_time_resumes_to_the_same_bed() {
+    use ballast::pack::resume::PackCheckpoint;
+    let (work, scene) = small_box_scene("0.12 m", BOX_SLEEPER, BOX_LAYER_COMPACTION);
+    let pack = |out: &Path, extra: &[&str]| {
+        let mut command = Command::new(PACK);
+        command
+            .arg(&scene)
+            .arg("--out")
+            .arg(out)
+            .args(["--set", "output.checkpoint_every=1000000000"])
+            .args(extra);
+        command
+    };
+    let whole = work.path().join("whole");
+    assert_success(&pack(&whole, &[]).output().unwrap());
+    assert!(!whole.join("checkpoint.bin").exists());
+    let killed = work.path().join("killed");
+    let every_half_second = ["--set", "output.checkpoint_wall_every=\"0.5 s\""];
+    let mut child = common::spawn_until_checkpoint(
+        &mut pack(&killed, &every_half_second),
+        &killed.join("checkpoint.bin"),
+        std::time::Duration::ZERO,
+    );
+    child.kill().unwrap();
+    child.wait().unwrap();
+    assert!(
+        !killed.join("packing.toml").exists(),
+        "killed before the end"
+    );
+    let saved: PackCheckpoint =
+        bincode::deserialize(&std::fs::read(killed.join("checkpoint.bin")).unwrap()).unwrap();
+    assert!(saved.bed.steps > 0);
+    let resumed = pack(&killed, &["--set", "output.checkpoint_wall_every=\"0 s\""])
+        .args(["--resume", killed.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert_success(&resumed);
+    let said = String::from_utf8_lossy(&resumed.stdout);
+    assert!(
+        said.contains(&format!("at step {}", saved.bed.steps)),
+        "{said}"
+    );
+    assert_same_files(&whole, &killed);
+}
+
 /// A checkpoint whose stone meshes changed since the killed run (one remeshed, the
 /// count the same; then fewer) is a one-line error naming the file.
 #[cfg(unix)]

@@ -19,8 +19,8 @@ pub struct PackCli {
     run: RunArgs,
     /// Continue a killed run from the checkpoint in its output directory DIR (give the
     /// killed run's scene, --preset and --set again; implies --out DIR). Only
-    /// deposit.max_phase_time, deposit.finish_sweeps and output.checkpoint_every may
-    /// differ.
+    /// deposit.max_phase_time, deposit.finish_sweeps, output.checkpoint_every and
+    /// output.checkpoint_wall_every may differ.
     #[arg(long, value_name = "DIR")]
     resume: Option<PathBuf>,
 }
@@ -47,7 +47,8 @@ pub struct NscdCli {
     #[command(flatten)]
     run: Option<RunArgs>,
     /// Continue a killed run from the checkpoint in its output directory DIR (give the
-    /// killed run's scene, --preset and --set again; implies --out DIR).
+    /// killed run's scene, --preset and --set again; implies --out DIR). Only
+    /// output.checkpoint_every and output.checkpoint_wall_every may differ.
     #[arg(long, value_name = "DIR")]
     resume: Option<PathBuf>,
     /// Stop after step STEP once its checkpoint is written, without the summary:
@@ -111,6 +112,7 @@ pub struct QdemCli {
     run: RunArgs,
     /// Continue a killed track run from the checkpoint in its output directory DIR
     /// (give the killed run's scene, --preset and --set again; implies --out DIR).
+    /// Only track.checkpoint_every and track.checkpoint_wall_every may differ.
     #[arg(long, value_name = "DIR")]
     resume: Option<PathBuf>,
     /// Run with a time step above the stable one (the run may blow up).

@@ -25,6 +25,13 @@ use crate::{Error, Result};
 /// 2: the tamping monitor's largest tine deflection (sprung tines).
 pub const CHECKPOINT_FORMAT: &str = "ballast-nscd checkpoint 2";
 
+/// Keys of the merged scene a resumed run may change: how often it checkpoints, not
+/// what it computes ([`crate::output::read_checkpoint_allowing`]).
+pub const RUN_CONTROL_KEYS: [(&str, &str); 2] = [
+    ("output", "checkpoint_every"),
+    ("output", "checkpoint_wall_every"),
+];
+
 pub use crate::output::CHECKPOINT_FILE;
 
 /// One body's state.
@@ -138,6 +145,6 @@ impl<T: DeserializeOwned> Checkpoint<T> {
     /// Reads a checkpoint and checks it was written for `scene` (the merged scene
     /// text); errors are one line naming the file.
     pub fn read(path: &Path, scene: &str) -> Result<Self> {
-        crate::output::read_checkpoint(path, CHECKPOINT_FORMAT, scene)
+        crate::output::read_checkpoint_allowing(path, CHECKPOINT_FORMAT, scene, &RUN_CONTROL_KEYS)
     }
 }

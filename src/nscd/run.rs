@@ -29,7 +29,7 @@ use super::nlgs::{ErrorCheck, NlgsOptions, Stopping};
 use super::scene::{DrivenBody, Model, NscdScene};
 use super::step::{MoreauJean, SolvedContact, StepParams};
 use crate::ddm::Partitioning;
-use crate::output::{write_json, CsvSeries, Grid, Progress, PvdWriter, RunClocks};
+use crate::output::{write_json, Cadence, CsvSeries, Grid, Progress, PvdWriter, RunClocks};
 use crate::pack::contacts::warm_memory;
 use crate::scene::{PhaseTimer, RunContext, Summary};
 use crate::{Error, Result};
@@ -285,6 +285,10 @@ pub fn run_with(ctx: &RunContext, resume: bool, stop_after: Option<u64>) -> Resu
     let mut bar = Progress::steps(steps, "ballast-nscd");
     let start = Instant::now();
     let mut frames_s = 0.0;
+    let mut cadence = Cadence::new(
+        scene.output.checkpoint_every,
+        scene.output.checkpoint_wall_every,
+    );
     let mut time = (first_step - 1) as f64 * dt;
     bar.set_position(first_step - 1);
     for step in first_step..=steps {
@@ -361,7 +365,7 @@ pub fn run_with(ctx: &RunContext, resume: bool, stop_after: Option<u64>) -> Resu
         }
         let every = scene.output.checkpoint_every;
         let stop_here = stop_after == Some(step) && step < steps;
-        if every > 0 && (step % every == 0 || step == steps || stop_here) {
+        if cadence.due(step) || (every > 0 && (step == steps || stop_here)) {
             let clock = Instant::now();
             let state = LoopState {
                 stats: stats.clone(),
@@ -380,6 +384,7 @@ pub fn run_with(ctx: &RunContext, resume: bool, stop_after: Option<u64>) -> Resu
                 state,
             )
             .write(&checkpoint_path)?;
+            cadence.written();
             timer.add("checkpoints", clock.elapsed());
             let stepping = start.elapsed().as_secs_f64() - frames_s;
             before

@@ -532,6 +532,10 @@ pub struct OutputSpec {
     /// 0 for none.
     #[serde(default = "default_checkpoint_every")]
     pub checkpoint_every: u64,
+    /// Also a checkpoint once this much wall time has passed since the last one ("0
+    /// s": only by steps; [`crate::output::Cadence`]).
+    #[serde(default = "crate::output::default_checkpoint_wall_every")]
+    pub checkpoint_wall_every: Time,
 }
 
 fn default_checkpoint_every() -> u64 {
@@ -547,6 +551,7 @@ impl Default for OutputSpec {
         OutputSpec {
             frames: default_frames(),
             checkpoint_every: default_checkpoint_every(),
+            checkpoint_wall_every: crate::output::default_checkpoint_wall_every(),
         }
     }
 }

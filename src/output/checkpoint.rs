@@ -9,17 +9,20 @@
 //! before decoding the rest, so a damaged file, another tool's file and a checkpoint
 //! of another scene each give one line naming the file.
 //!
+//! When a checkpoint is written is a [`Cadence`]: every so many steps, and after so much
+//! wall time since the last one.
+//!
 //! The wall time a run spent up to a checkpoint is kept beside it, in
 //! [`CLOCKS_FILE`] ([`RunClocks`]), not in it: a resumed run's checkpoint stays
 //! byte-identical to an uninterrupted run's, and the summary of a run done in pieces
 //! still reports the time of all of them.
 
 use std::path::Path;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use serde::{de::DeserializeOwned, Deserialize, Serialize};
 
-use crate::scene::PhaseTimer;
+use crate::scene::{PhaseTimer, Time};
 use crate::{Error, Result};
 
 /// The file name in a run's output directory.
@@ -27,6 +30,57 @@ pub const CHECKPOINT_FILE: &str = "checkpoint.bin";
 
 /// The file beside the checkpoint with the wall time spent up to it.
 pub const CLOCKS_FILE: &str = "checkpoint-clocks.json";
+
+/// When a run writes its checkpoint: after every `every`-th step (0: never, whatever
+/// the wall time), and also after a step that ends `wall` or more of wall time after
+/// the last checkpoint (or the run's start; zero: no such trigger).
+///
+/// Why both: a step's cost varies a hundredfold within one run (a `table3` packing
+/// rains at a fraction of a second a step and finishes at a minute a step, 120 000
+/// contacts solved to the tolerance), so a step count alone either writes needlessly
+/// often or leaves hours to lose when a run is killed. The wall-time trigger bounds
+/// the loss, as GROMACS's `-cpt` (15 min) does. Where a checkpoint lands does not
+/// change the run: a resumed run continues bit for bit from any step.
+#[derive(Debug, Clone)]
+pub struct Cadence {
+    every: u64,
+    wall: Duration,
+    last: Instant,
+}
+
+impl Cadence {
+    /// Every `every` steps and every `wall` of wall time, counted from now.
+    pub fn new(every: u64, wall: Time) -> Self {
+        Cadence {
+            every,
+            wall: Duration::from_secs_f64(wall.si().max(0.0)),
+            last: Instant::now(),
+        }
+    }
+
+    /// Whether a checkpoint is due after step `step` (counted from the run's start).
+    pub fn due(&self, step: u64) -> bool {
+        self.due_at(step, Instant::now())
+    }
+
+    /// [`Self::due`] at the instant `now`.
+    pub fn due_at(&self, step: u64, now: Instant) -> bool {
+        self.every > 0
+            && (step % self.every == 0
+                || (!self.wall.is_zero() && now.saturating_duration_since(self.last) >= self.wall))
+    }
+
+    /// Notes that a checkpoint was written now: the wall time counts from here.
+    pub fn written(&mut self) {
+        self.last = Instant::now();
+    }
+}
+
+/// The scenes' default wall time between checkpoints (`checkpoint_wall_every`): at
+/// most half an hour of a killed run is lost.
+pub fn default_checkpoint_wall_every() -> Time {
+    Time::from_si(1800.0)
+}
 
 /// Wall time a run spent up to a checkpoint, over all the pieces it was run in.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
@@ -124,6 +178,34 @@ pub fn read_checkpoint<T: DeserializeOwned>(path: &Path, format: &str, scene: &s
     read_checkpoint_matching(path, format, |saved| saved == scene)
 }
 
+/// Reads a checkpoint as [`read_checkpoint`] does, but lets the current scene differ
+/// from the saved one in the `run_control` keys ((table, key) of the merged scene):
+/// keys that say how a run is driven (how often it checkpoints, how long a phase may
+/// run), not what it computes.
+pub fn read_checkpoint_allowing<T: DeserializeOwned>(
+    path: &Path,
+    format: &str,
+    scene: &str,
+    run_control: &[(&str, &str)],
+) -> Result<T> {
+    let current = scene_without(scene, run_control);
+    read_checkpoint_matching(path, format, |saved| {
+        current.is_some() && scene_without(saved, run_control) == current
+    })
+}
+
+/// The merged scene text parsed, without the `keys` ((table, key)); `None` when it is
+/// not TOML.
+fn scene_without(scene: &str, keys: &[(&str, &str)]) -> Option<toml::Table> {
+    let mut table: toml::Table = scene.parse().ok()?;
+    for (section, key) in keys {
+        if let Some(toml::Value::Table(t)) = table.get_mut(*section) {
+            t.remove(*key);
+        }
+    }
+    Some(table)
+}
+
 /// [`read_checkpoint`] with the scene test given: `matches(saved)` says whether the
 /// saved merged scene text is one the current run may continue (a tool that lets a
 /// resumed run change a run-control key compares the scenes without it).
@@ -163,6 +245,25 @@ mod tests {
         format: String,
         scene: String,
         x: Vec<f64>,
+    }
+
+    #[test]
+    fn a_checkpoint_is_due_on_its_steps_or_after_its_wall_time() {
+        let cadence = Cadence::new(100, Time::from_si(60.0));
+        let start = cadence.last;
+        let later = |s: u64| start + Duration::from_secs(s);
+        assert!(!cadence.due_at(99, later(59)));
+        assert!(cadence.due_at(100, later(0)));
+        assert!(cadence.due_at(101, later(60)));
+        let mut written = cadence.clone();
+        written.written();
+        assert!(!written.due_at(101, written.last + Duration::from_secs(59)));
+        // No wall trigger: only the steps.
+        let steps_only = Cadence::new(100, Time::from_si(0.0));
+        assert!(!steps_only.due_at(101, later(86_400)));
+        // No checkpoints at all: never, whatever the wall time.
+        let never = Cadence::new(0, Time::from_si(60.0));
+        assert!(!never.due_at(100, later(86_400)));
     }
 
     #[test]
@@ -221,5 +322,37 @@ mod tests {
             junk.contains(CHECKPOINT_FILE) && !junk.contains('\n'),
             "{junk}"
         );
+    }
+    #[test]
+    fn a_resumed_run_may_change_its_run_control_keys_only() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join(CHECKPOINT_FILE);
+        let scene = "[output]\ncheckpoint_every = 5\nframes = 2\n";
+        let record = Record {
+            format: "tool checkpoint 1".into(),
+            scene: scene.into(),
+            x: vec![1.0],
+        };
+        write_checkpoint(&path, &record).unwrap();
+        let keys = [
+            ("output", "checkpoint_every"),
+            ("output", "checkpoint_wall_every"),
+        ];
+        let read = |scene: &str| {
+            read_checkpoint_allowing::<Record>(&path, "tool checkpoint 1", scene, &keys)
+        };
+        assert_eq!(read(scene).unwrap(), record);
+        let other_cadence =
+            "[output]\ncheckpoint_every = 7\ncheckpoint_wall_every = \"1 h\"\nframes = 2\n";
+        assert_eq!(read(other_cadence).unwrap(), record);
+        let other_frames = "[output]\ncheckpoint_every = 5\nframes = 3\n";
+        assert!(read(other_frames)
+            .unwrap_err()
+            .to_string()
+            .contains("another scene"));
+        assert!(read("not toml [")
+            .unwrap_err()
+            .to_string()
+            .contains("another scene"));
     }
 }

@@ -29,7 +29,8 @@ pub mod vtu;
 
 pub use atomic::{write_atomic, AtomicFile};
 pub use checkpoint::{
-    read_checkpoint, read_checkpoint_matching, write_checkpoint, RunClocks, CHECKPOINT_FILE,
+    default_checkpoint_wall_every, read_checkpoint, read_checkpoint_allowing,
+    read_checkpoint_matching, write_checkpoint, Cadence, RunClocks, CHECKPOINT_FILE,
 };
 pub use csv::CsvSeries;
 pub use grid::{points_from_nalgebra, CellKind, Field, FieldValues, Grid};

@@ -1,7 +1,7 @@
 //! What `ballast-pack` writes while the bed builds: a `deposit.csv` row every step, the
 //! VTK frames of `bed.pvd`, the progress line, and a checkpoint every
-//! `output.checkpoint_every` steps ([`super::resume`]). A resumed run reopens the
-//! killed run's `deposit.csv` and `bed.pvd` cut back to the checkpoint's time, so the
+//! `output.checkpoint_every` steps or `output.checkpoint_wall_every` of wall time
+//! ([`super::resume`]). A resumed run reopens the killed run's `deposit.csv` and `bed.pvd` cut back to the checkpoint's time, so the
 //! finished files are the uninterrupted run's.
 
 use std::path::{Path, PathBuf};
@@ -11,7 +11,7 @@ use super::deposit::{fastest_point_speed, Deposition, Observer, Role, StepRecord
 use super::resume::{PackCheckpoint, PACK_CHECKPOINT_FORMAT};
 use crate::nscd::body::Body;
 use crate::nscd::run::{grains_grid, Drawn};
-use crate::output::{CsvSeries, Grid, Progress, PvdWriter};
+use crate::output::{Cadence, CsvSeries, Grid, Progress, PvdWriter};
 use crate::{Error, Result};
 
 /// Columns of `deposit.csv`. `energy_rise_J` is the step's ΔKE − work of gravity and
@@ -39,8 +39,8 @@ const COLUMNS: [&str; 11] = [
 pub struct CheckpointPlan {
     /// `checkpoint.bin` in the output directory.
     pub path: PathBuf,
-    /// Every this many steps (0: never).
-    pub every: u64,
+    /// When (every so many steps, after so much wall time).
+    pub cadence: Cadence,
     /// The merged scene text the checkpoint is tied to.
     pub scene: String,
 }
@@ -186,13 +186,13 @@ impl Observer for Recorder {
     }
 
     fn between_steps(&mut self, bed: &Deposition) {
-        let every = self.checkpoints.every;
-        if self.failure.is_some() || every == 0 || bed.steps % every != 0 {
+        if self.failure.is_some() || !self.checkpoints.cadence.due(bed.steps) {
             return;
         }
         if let Err(e) = self.checkpoint(bed) {
             self.failure = Some(e);
         }
+        self.checkpoints.cadence.written();
     }
 
     fn stop(&self) -> bool {

@@ -107,10 +107,12 @@ impl PackCheckpoint {
     /// Reads a checkpoint and checks it was written for `scene` (the merged scene
     /// text), up to the [`RUN_CONTROL_KEYS`].
     pub fn read(path: &Path, scene: &str) -> Result<Self> {
-        let current = without_run_control(scene);
-        crate::output::read_checkpoint_matching(path, PACK_CHECKPOINT_FORMAT, |saved| {
-            current.is_some() && without_run_control(saved) == current
-        })
+        crate::output::read_checkpoint_allowing(
+            path,
+            PACK_CHECKPOINT_FORMAT,
+            scene,
+            &RUN_CONTROL_KEYS,
+        )
     }
 }
 
@@ -122,23 +124,12 @@ impl PackCheckpoint {
 /// tolerance instead of stopping on the cap (docs/pack.md, "Final settle: the capped
 /// solve feeds the bed"). (Changing them makes the resumed run differ from an
 /// uninterrupted one with the old values.)
-pub const RUN_CONTROL_KEYS: [(&str, &str); 3] = [
+pub const RUN_CONTROL_KEYS: [(&str, &str); 4] = [
     ("deposit", "max_phase_time"),
     ("deposit", "finish_sweeps"),
     ("output", "checkpoint_every"),
+    ("output", "checkpoint_wall_every"),
 ];
-
-/// The merged scene text parsed, without the [`RUN_CONTROL_KEYS`]; `None` when it is
-/// not TOML.
-fn without_run_control(scene: &str) -> Option<toml::Table> {
-    let mut table: toml::Table = scene.parse().ok()?;
-    for (section, key) in RUN_CONTROL_KEYS {
-        if let Some(toml::Value::Table(t)) = table.get_mut(section) {
-            t.remove(key);
-        }
-    }
-    Some(table)
-}
 
 impl Deposition {
     /// The state a resumed run continues from (taken between two steps).

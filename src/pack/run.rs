@@ -10,7 +10,8 @@
 //!   energy, interpenetration;
 //! - `summary.json`: grains, d50, compactness per control box, interpenetration,
 //!   coordination number, phases, wall times, grains·steps per second;
-//! - `checkpoint.bin` every `output.checkpoint_every` steps, from which
+//! - `checkpoint.bin` every `output.checkpoint_every` steps and after
+//!   `output.checkpoint_wall_every` of wall time, from which
 //!   `ballast-pack … --resume DIR` continues a killed run ([`super::resume`]).
 
 use std::path::Path;
@@ -39,7 +40,7 @@ use crate::nscd::motion::{mesh_pieces, Pieces};
 use crate::nscd::run::{grains_grid, Drawn};
 use crate::nscd::scene::{read_stone_shapes, NscdScene, StoneShape};
 use crate::nscd::step::{FrictionTable, StepParams};
-use crate::output::{write_atomic, write_json, write_vtu, Grid, CHECKPOINT_FILE};
+use crate::output::{write_atomic, write_json, write_vtu, Cadence, Grid, CHECKPOINT_FILE};
 use crate::scene::{PhaseTimer, RunContext, Summary};
 use crate::{Error, Result};
 
@@ -448,7 +449,10 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
         scene.output.frame_interval.si(),
         CheckpointPlan {
             path: checkpoint_path.clone(),
-            every: scene.output.checkpoint_every,
+            cadence: Cadence::new(
+                scene.output.checkpoint_every,
+                scene.output.checkpoint_wall_every,
+            ),
             scene: scene_text,
         },
         resumed.as_ref(),

@@ -72,6 +72,7 @@
 //! [output]
 //! frame_interval = "0.1 s"              # VTK frames of the deposition (0: none)
 //! checkpoint_every = 200                # steps between checkpoints (0: none)
+//! checkpoint_wall_every = "30 min"      # and after this much wall time ("0 s": off)
 //! ```
 
 use std::path::PathBuf;
@@ -336,6 +337,11 @@ pub struct OutputSpec {
     /// ([`super::resume`]); 0 for none.
     #[serde(default = "default_checkpoint_every")]
     pub checkpoint_every: u64,
+    /// Also a checkpoint once this much wall time has passed since the last one ("0
+    /// s": only by steps): a final settle's steps take a minute each
+    /// ([`crate::output::Cadence`]).
+    #[serde(default = "crate::output::default_checkpoint_wall_every")]
+    pub checkpoint_wall_every: Time,
 }
 
 /// The seed's n_DDM for its Table 3 case (seed 000 §4.2).
@@ -361,6 +367,7 @@ impl Default for OutputSpec {
         OutputSpec {
             frame_interval: default_frame_interval(),
             checkpoint_every: default_checkpoint_every(),
+            checkpoint_wall_every: crate::output::default_checkpoint_wall_every(),
         }
     }
 }

@@ -185,8 +185,8 @@ macro_rules! quantities {
 quantities! {
     /// A length in metres (m, mm, cm, km, µm).
     Length, LENGTH: "a length", [1, 0, 0, 0], si "m", use "m, mm, cm or km";
-    /// A duration in seconds (s, ms, µs).
-    Time, TIME: "a time", [0, 0, 1, 0], si "s", use "s, ms or us";
+    /// A duration in seconds (s, ms, µs; min and h for wall-clock spans).
+    Time, TIME: "a time", [0, 0, 1, 0], si "s", use "s, ms, us, min or h";
     /// A mass in kilograms (kg, g).
     Mass, MASS: "a mass", [0, 1, 0, 0], si "kg", use "kg or g";
     /// A mass density in kg/m³ (kg/m^3, g/cm^3).

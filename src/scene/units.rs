@@ -81,6 +81,9 @@ impl fmt::Display for UnitError {
 
 /// Unit symbols that take no prefix: (symbol, SI factor, dimension).
 const FIXED_UNITS: &[(&str, f64, Dimension)] = &[
+    // Wall-clock spans (checkpoint intervals): minutes and hours.
+    ("min", 60.0, Dimension::new(0, 0, 1, 0)),
+    ("h", 3600.0, Dimension::new(0, 0, 1, 0)),
     (
         "deg",
         std::f64::consts::PI / 180.0,
@@ -281,6 +284,8 @@ mod tests {
         assert!(close(si("2 Mg"), 2e3));
         assert!(close(si("2 ms"), 2e-3));
         assert!(close(si("2 us"), 2e-6));
+        assert!(close(si("30 min"), 1800.0));
+        assert!(close(si("1.5 h"), 5400.0));
         assert!(close(si("35 Hz"), 35.0));
         assert!(close(si("2 kHz"), 2e3));
         assert!(close(si("3 N"), 3.0));

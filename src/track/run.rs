@@ -27,8 +27,8 @@ use super::loads::RailSeatLoads;
 use super::scene::{DtSpec, TrackScene};
 use crate::dem::{MultiBodySolver, MultiState};
 use crate::output::{
-    read_checkpoint, write_checkpoint, write_json, CsvSeries, Grid, Progress, PvdWriter, RunClocks,
-    CHECKPOINT_FILE,
+    read_checkpoint_allowing, write_checkpoint, write_json, Cadence, CsvSeries, Grid, Progress,
+    PvdWriter, RunClocks, CHECKPOINT_FILE,
 };
 use crate::pack::Packing;
 use crate::post::track_sensors::QUANTITIES;
@@ -56,7 +56,12 @@ pub fn run(ctx: &RunContext, force: bool, resume: bool) -> Result<()> {
         .map_err(|e| Error::Message(format!("cannot write the merged scene: {e}")))?;
     let resumed: Option<TrackCheckpoint> = if resume {
         let path = ctx.out_dir.join(CHECKPOINT_FILE);
-        Some(read_checkpoint(&path, CHECKPOINT_FORMAT, &scene_text)?)
+        Some(read_checkpoint_allowing(
+            &path,
+            CHECKPOINT_FORMAT,
+            &scene_text,
+            &RUN_CONTROL_KEYS,
+        )?)
     } else {
         None
     };
@@ -199,6 +204,7 @@ pub fn run(ctx: &RunContext, force: bool, resume: bool) -> Result<()> {
         }
     };
     let started = Instant::now();
+    let mut cadence = Cadence::new(t.checkpoint_every, t.checkpoint_wall_every);
     let (first_step, touching_before) = (state.step, figures.touching_sum);
     let mut bar = Progress::steps(total_steps, "ballast-qdem: track");
     bar.set_position(state.step);
@@ -224,8 +230,7 @@ pub fn run(ctx: &RunContext, force: bool, resume: bool) -> Result<()> {
         if state.step % frame_every == 0 || state.step == total_steps {
             out.frame(&track, &state)?;
         }
-        let every = t.checkpoint_every;
-        if every > 0 && (state.step % every == 0 || state.step == total_steps) {
+        if cadence.due(state.step) || (t.checkpoint_every > 0 && state.step == total_steps) {
             let clock = Instant::now();
             write_checkpoint(
                 &checkpoint_path,
@@ -238,6 +243,7 @@ pub fn run(ctx: &RunContext, force: bool, resume: bool) -> Result<()> {
                     frames: out.frames,
                 },
             )?;
+            cadence.written();
             out.frame_s += clock.elapsed().as_secs_f64();
             let stepping = started.elapsed().as_secs_f64() - out.frame_s;
             before
@@ -382,6 +388,13 @@ const TRACK_COLUMNS: [&str; 12] = [
 
 /// The format tag of a track checkpoint.
 const CHECKPOINT_FORMAT: &str = "ballast-qdem track checkpoint 2";
+
+/// Keys of the merged scene a resumed run may change: how often it checkpoints, not
+/// what it computes ([`crate::output::read_checkpoint_allowing`]).
+const RUN_CONTROL_KEYS: [(&str, &str); 2] = [
+    ("track", "checkpoint_every"),
+    ("track", "checkpoint_wall_every"),
+];
 
 /// Everything a killed track run needs to go on bit for bit (written by
 /// [`write_checkpoint`]; the scene, bodies and loads come from the scene again).

@@ -19,6 +19,7 @@
 //! sample_rate = "10 kHz"
 //! frames = 4
 //! checkpoint_every = 50000              # steps; 0 for none (resume: --resume DIR)
+//! checkpoint_wall_every = "30 min"      # and after this much wall time ("0 s": off)
 //!
 //! [ballast]            # material + DEM springs (seed 004 Table 1)
 //! [sleeper]
@@ -145,6 +146,10 @@ pub struct TrackSpec {
     /// end; 0 for none.
     #[serde(default = "default_checkpoint_every")]
     pub checkpoint_every: u64,
+    /// Also a checkpoint once this much wall time has passed since the last one ("0
+    /// s": only by steps; [`crate::output::Cadence`]).
+    #[serde(default = "crate::output::default_checkpoint_wall_every")]
+    pub checkpoint_wall_every: Time,
 }
 
 /// Where a body's contact spheres are centred.
