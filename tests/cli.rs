@@ -112,6 +112,36 @@ fn bad_tamping_keys_give_one_line_errors() {
     }
 }
 
+/// The wall time between checkpoints is checked by each tool that checkpoints: a
+/// negative time or a length is one line naming the key, before any input is read.
+#[test]
+fn bad_checkpoint_wall_times_give_one_line_errors() {
+    let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+    for (binary, scene, key) in [
+        (BINARIES[0].1, "bed.toml", "output.checkpoint_wall_every"),
+        (
+            BINARIES[1].1,
+            "tamping.toml",
+            "output.checkpoint_wall_every",
+        ),
+        (
+            BINARIES[2].1,
+            "track_impact.toml",
+            "track.checkpoint_wall_every",
+        ),
+    ] {
+        let scene = scenes.join(scene);
+        for (value, reason) in [("\"-1 min\"", "negative"), ("\"5 m\"", "not a time")] {
+            let set = format!("{key}={value}");
+            let output = run(
+                binary,
+                &[scene.to_str().unwrap(), "--preset", "quick", "--set", &set],
+            );
+            common::assert_one_line_error(&output, 1, &[&format!("key {key}:"), reason]);
+        }
+    }
+}
+
 #[test]
 fn a_missing_scene_file_is_named() {
     for (_, binary) in &BINARIES[..3] {

@@ -587,6 +587,10 @@ impl Validate for NscdScene {
     fn validate(&self, v: &mut Validator) {
         v.positive("time.duration", self.time.duration);
         v.positive("time.dt", self.time.dt);
+        v.non_negative(
+            "output.checkpoint_wall_every",
+            self.output.checkpoint_wall_every,
+        );
         v.nested("ddm", &self.ddm);
         v.in_range("time.theta", self.time.theta, 0.5, 1.0);
         if let Some(tol) = self.solver.tolerance {

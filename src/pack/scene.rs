@@ -399,6 +399,10 @@ impl BedScene {
 
 impl Validate for BedScene {
     fn validate(&self, v: &mut Validator) {
+        v.non_negative(
+            "output.checkpoint_wall_every",
+            self.output.checkpoint_wall_every,
+        );
         let names: Vec<&str> = self.material.iter().map(|m| m.name.as_str()).collect();
         let material = |v: &mut Validator, key: &str, name: &str, needs_density: bool| match self
             .material

@@ -357,6 +357,7 @@ impl Validate for TrackScene {
         let t = &self.track;
         v.non_negative("track.settle", t.settle);
         v.non_negative("track.settle_damping", t.settle_damping);
+        v.non_negative("track.checkpoint_wall_every", t.checkpoint_wall_every);
         v.positive("track.duration", t.duration);
         if let Some(DtSpec::Fixed(dt)) = t.dt {
             v.positive("track.dt", dt);
