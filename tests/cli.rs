@@ -113,7 +113,7 @@ fn bad_tamping_keys_give_one_line_errors() {
 }
 
 /// The wall time between checkpoints is checked by each tool that checkpoints: a
-/// negative time or a length is one line naming the key, before any input is read.
+/// negative time or a length is one line naming the key.
 #[test]
 fn bad_checkpoint_wall_times_give_one_line_errors() {
     let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");

@@ -323,6 +323,7 @@ mod tests {
             "{junk}"
         );
     }
+
     #[test]
     fn a_resumed_run_may_change_its_run_control_keys_only() {
         let dir = tempfile::tempdir().unwrap();

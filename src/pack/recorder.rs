@@ -1,8 +1,9 @@
 //! What `ballast-pack` writes while the bed builds: a `deposit.csv` row every step, the
 //! VTK frames of `bed.pvd`, the progress line, and a checkpoint every
 //! `output.checkpoint_every` steps or `output.checkpoint_wall_every` of wall time
-//! ([`super::resume`]). A resumed run reopens the killed run's `deposit.csv` and `bed.pvd` cut back to the checkpoint's time, so the
-//! finished files are the uninterrupted run's.
+//! ([`super::resume`]). A resumed run reopens the killed run's `deposit.csv` and
+//! `bed.pvd` cut back to the checkpoint's time, so the finished files are the
+//! uninterrupted run's.
 
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
