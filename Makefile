@@ -62,7 +62,7 @@ include $(sort $(filter-out mk/stones.mk,$(wildcard mk/*.mk)))
 
 .PHONY: all setup build meshes gallery test lint clean distclean readme-figure
 
-all: gallery qdem-quick $(QDEM_CHART) pack-quick tamping track pack-periodic
+all: gallery qdem-quick $(QDEM_CHART) pack-quick tamping track pack-periodic tamping-drives
 
 ## Set-up: Debian packages the build links (mk/system-deps.mk) and a project-local venv
 ## with the pinned Python tools.

@@ -31,6 +31,20 @@ $(TAMPING_QUICK): scenes/tamping.toml $(PACK_QUICK) meshes/tine.msh $(RUST_SOURC
 $(TAMPING_CHART): tools/tamping_report.py $(TAMPING_QUICK) | $(VENV_STAMP)
 	$(PY) $< chart $(dir $(TAMPING_QUICK)) $@
 
+## The newest capability's quick scene (`make tamping-drives`, the end of the default
+## `make`): the quick tamping again with tines that give (`tamping.tine_stiffness`,
+## 10 MN/m, ASSUMED; docs/tamping.md, "Tines that give") and a chart and table of
+## both drives side by side.
+TAMPING_SPRUNG := results/tamping-quick-sprung/summary.json
+TAMPING_DRIVES := results/tamping_quick_drives.png
+.PHONY: tamping-drives
+tamping-drives: $(TAMPING_DRIVES)
+$(TAMPING_SPRUNG): scenes/tamping.toml $(PACK_QUICK) meshes/tine.msh $(RUST_SOURCES) | $(RELEASE)/ballast-nscd
+	$(RELEASE)/ballast-nscd $< --preset quick --set 'tamping.tine_stiffness="10 MN/m"' --out $(@D)
+$(TAMPING_DRIVES): tools/tamping_report.py $(TAMPING_QUICK) $(TAMPING_SPRUNG) | $(VENV_STAMP)
+	$(PY) $< drives $(dir $(TAMPING_QUICK)) $(dir $(TAMPING_SPRUNG)) $@ > $(@:.png=.md)
+	cat $(@:.png=.md)
+
 bench-tamping: results/bed-$(TAMPING_BENCH_PRESET)/summary.json meshes/tine.msh | $(RELEASE)/ballast-nscd $(VENV_STAMP)
 	$(PY) tools/tamping_report.py bench --nscd $(RELEASE)/ballast-nscd \
 	  --preset $(TAMPING_BENCH_PRESET) --steps $(TAMPING_BENCH_STEPS) \

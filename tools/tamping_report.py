@@ -3,6 +3,13 @@
   tamping_report.py chart DIR OUT.png
       compactness per control box, tine travel and squeezing forces against time,
       from DIR/tamping.csv and DIR/summary.json, the phases shaded.
+  tamping_report.py drives RIGID_DIR SPRUNG_DIR OUT.png
+      the quick tamping with rigid tines (the seed's kinematic drive) beside the same
+      run with tines that give (`tamping.tine_stiffness`): compactness under the
+      tamped sleeper, the stones' kinetic energy and the tines' deflection against
+      time, and a table of both runs' figures on stdout (most kinetic energy, the
+      energy the truncated solve made: the sum of the steps' positive energy rises,
+      mean push-back in the squeeze, compactness before -> after, largest deflection).
   tamping_report.py bench --nscd BIN --preset P --steps N --out DIR [--repeat R] [--fresh 1]
                     [--versions 1,2,3,4,5] [--interleave K]
       runs scenes/tamping.toml --preset P for its first N steps in the three versions
@@ -172,6 +179,71 @@ def chart(directory, out):
     figure.tight_layout()
     figure.savefig(out, dpi=110)
     print("tamping_report: wrote", out)
+
+
+def residuals(directory):
+    with open(os.path.join(directory, "residuals.csv")) as f:
+        return [{k: float(v) for k, v in r.items()} for r in csv.DictReader(f)]
+
+
+def drive_figures(directory):
+    """The figures the drives table compares, from one run's summary and residuals."""
+    fig = read_summary(directory)["figures"]
+    rises = [r["energy_rise_J"] for r in residuals(directory)]
+    return {
+        "most kinetic energy (J)": "%.2f" % fig["max_kinetic_energy_J"],
+        "energy the solve made (J; largest step)": "%.0f; %.1f" % (
+            sum(e for e in rises if e > 0.0), max(rises)),
+        "mean push-back in the squeeze (kN)": "%.1f" % (fig["mean_tine_squeeze_force_N"] / 1e3),
+        "under the tamped sleeper, before -> after": "%.3f -> %.3f" % (
+            fig["compactness_before"], fig["compactness_after"]),
+        "largest tine deflection (mm)": "%.1f" % (1e3 * fig["max_tine_deflection_m"]),
+    }
+
+
+def drives(rigid_dir, sprung_dir, out):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    runs = [("rigid tines", rigid_dir), ("tines that give", sprung_dir)]
+    figure, (ax1, ax2, ax3) = plt.subplots(3, 1, figsize=(8, 9), sharex=True)
+    summary, rows = load(sprung_dir)
+    fig = summary["figures"]
+    for ax in (ax1, ax2, ax3):
+        for p in fig["tamping_phases"]:
+            if p["name"] == "squeeze":
+                ax.axvspan(p["start_s"], p["end_s"], color="0.9")
+    tamped = "compactness_under_sleeper_%d" % fig["tamped_sleeper"]
+    for label, directory in runs:
+        _, tamping = load(directory)
+        ax1.plot([r["time_s"] for r in tamping], [r[tamped] for r in tamping], label=label)
+        steps = residuals(directory)
+        ax2.plot([r["time_s"] for r in steps], [r["kinetic_energy_J"] for r in steps],
+                 lw=0.8, label=label)
+    tines = sorted({c[: -len("_deflection_m")] for c in rows[0] if c.endswith("_deflection_m")})
+    for name in tines:
+        ax3.plot([r["time_s"] for r in rows], [1e3 * r[name + "_deflection_m"] for r in rows],
+                 lw=0.8, label=name)
+    ax1.set_ylabel("solid fraction under sleeper %d" % fig["tamped_sleeper"])
+    ax1.set_title("tamping %s: rigid tines against tines that give (squeeze shaded)"
+                  % (summary.get("preset") or ""))
+    ax1.legend(fontsize=7, loc="lower left")
+    ax2.set_ylabel("stones' kinetic energy (J)")
+    ax2.set_yscale("log")
+    ax2.legend(fontsize=7)
+    ax3.set_ylabel("tine deflection (mm)")
+    ax3.legend(fontsize=7)
+    ax3.set_xlabel("time (s)")
+    figure.tight_layout()
+    figure.savefig(out, dpi=110)
+    table = [(label, drive_figures(directory)) for label, directory in runs]
+    print("| | %s |" % " | ".join(label for label, _ in table))
+    print("|---|%s" % ("---|" * len(table)))
+    for key in table[0][1]:
+        print("| %s | %s |" % (key, " | ".join(f[key] for _, f in table)))
+    print("tamping_report: wrote", out, file=sys.stderr)
 
 
 def phase_times(summary):
@@ -650,6 +722,9 @@ def creep(pack, nscd, seeds, out, until, sweeps_list):
 def main(argv):
     if len(argv) == 3 and argv[0] == "chart":
         chart(argv[1], argv[2])
+        return 0
+    if len(argv) == 4 and argv[0] == "drives":
+        drives(argv[1], argv[2], argv[3])
         return 0
     if argv and argv[0] == "bench":
         opts = dict(zip(argv[1::2], argv[2::2]))
