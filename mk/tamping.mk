@@ -42,7 +42,8 @@ tamping-drives: $(TAMPING_DRIVES)
 $(TAMPING_SPRUNG): scenes/tamping.toml $(PACK_QUICK) meshes/tine.msh $(RUST_SOURCES) | $(RELEASE)/ballast-nscd
 	$(RELEASE)/ballast-nscd $< --preset quick --set 'tamping.tine_stiffness="10 MN/m"' --out $(@D)
 $(TAMPING_DRIVES): tools/tamping_report.py $(TAMPING_QUICK) $(TAMPING_SPRUNG) | $(VENV_STAMP)
-	$(PY) $< drives $(dir $(TAMPING_QUICK)) $(dir $(TAMPING_SPRUNG)) $@ > $(@:.png=.md)
+	$(PY) $< drives $(dir $(TAMPING_QUICK)) $(dir $(TAMPING_SPRUNG)) $@ > $(@:.png=.md).tmp
+	mv $(@:.png=.md).tmp $(@:.png=.md)
 	cat $(@:.png=.md)
 
 bench-tamping: results/bed-$(TAMPING_BENCH_PRESET)/summary.json meshes/tine.msh | $(RELEASE)/ballast-nscd $(VENV_STAMP)

@@ -137,6 +137,14 @@ def load(directory):
     return summary, rows
 
 
+def shade_squeeze(axes, fig):
+    """Shades the squeeze phases of a run (its summary's `figures`) on every axis."""
+    for ax in axes:
+        for p in fig["tamping_phases"]:
+            if p["name"] == "squeeze":
+                ax.axvspan(p["start_s"], p["end_s"], color="0.9")
+
+
 def chart(directory, out):
     import matplotlib
 
@@ -149,10 +157,7 @@ def chart(directory, out):
     boxes = [c for c in rows[0] if c.startswith("compactness_")]
     tines = sorted({c[: -len("_travel_m")] for c in rows[0] if c.endswith("_travel_m")})
     figure, (ax1, ax2, ax3) = plt.subplots(3, 1, figsize=(8, 9), sharex=True)
-    for ax in (ax1, ax2, ax3):
-        for p in fig["tamping_phases"]:
-            if p["name"] == "squeeze":
-                ax.axvspan(p["start_s"], p["end_s"], color="0.9")
+    shade_squeeze((ax1, ax2, ax3), fig)
     tamped = "under_sleeper_%d" % fig["tamped_sleeper"]
     for c in boxes:
         name = c[len("compactness_"):]
@@ -186,10 +191,10 @@ def residuals(directory):
         return [{k: float(v) for k, v in r.items()} for r in csv.DictReader(f)]
 
 
-def drive_figures(directory):
-    """The figures the drives table compares, from one run's summary and residuals."""
-    fig = read_summary(directory)["figures"]
-    rises = [r["energy_rise_J"] for r in residuals(directory)]
+def drive_figures(fig, steps):
+    """The figures the drives table compares, from one run's summary `figures` and its
+    residuals.csv rows `steps`."""
+    rises = [r["energy_rise_J"] for r in steps]
     return {
         "most kinetic energy (J)": "%.2f" % fig["max_kinetic_energy_J"],
         "energy the solve made (J; largest step)": "%.0f; %.1f" % (
@@ -211,15 +216,14 @@ def drives(rigid_dir, sprung_dir, out):
     figure, (ax1, ax2, ax3) = plt.subplots(3, 1, figsize=(8, 9), sharex=True)
     summary, rows = load(sprung_dir)
     fig = summary["figures"]
-    for ax in (ax1, ax2, ax3):
-        for p in fig["tamping_phases"]:
-            if p["name"] == "squeeze":
-                ax.axvspan(p["start_s"], p["end_s"], color="0.9")
+    shade_squeeze((ax1, ax2, ax3), fig)
     tamped = "compactness_under_sleeper_%d" % fig["tamped_sleeper"]
+    table = []
     for label, directory in runs:
-        _, tamping = load(directory)
-        ax1.plot([r["time_s"] for r in tamping], [r[tamped] for r in tamping], label=label)
+        run_summary, tamping = load(directory)
         steps = residuals(directory)
+        table.append((label, drive_figures(run_summary["figures"], steps)))
+        ax1.plot([r["time_s"] for r in tamping], [r[tamped] for r in tamping], label=label)
         ax2.plot([r["time_s"] for r in steps], [r["kinetic_energy_J"] for r in steps],
                  lw=0.8, label=label)
     tines = sorted({c[: -len("_deflection_m")] for c in rows[0] if c.endswith("_deflection_m")})
@@ -238,7 +242,6 @@ def drives(rigid_dir, sprung_dir, out):
     ax3.set_xlabel("time (s)")
     figure.tight_layout()
     figure.savefig(out, dpi=110)
-    table = [(label, drive_figures(directory)) for label, directory in runs]
     print("| | %s |" % " | ".join(label for label, _ in table))
     print("|---|%s" % ("---|" * len(table)))
     for key in table[0][1]:
