@@ -1698,6 +1698,58 @@ fn a_killed_packing_resumes_to_the_same_bed_from_every_stage() {
     }
 }
 
+/// ballast-nscd's checkpoint by wall time: a quick tamping run (0.1 s) with the step
+/// count out of reach and a checkpoint every 0.1 s of wall time, killed after the first
+/// and resumed with the key changed ("0 s", a run-control key), writes the same series
+/// and collections as the run left alone.
+#[cfg(unix)]
+#[test]
+fn a_tamping_run_checkpointed_by_wall_time_resumes_to_the_same_files() {
+    let work = tempfile::tempdir().unwrap();
+    let short = [
+        "--set",
+        "time.duration=0.1",
+        "--set",
+        "output.frames=2",
+        "--set",
+        "output.checkpoint_every=1000000000",
+    ];
+    let wall = |value: &str| format!("output.checkpoint_wall_every=\"{value}\"");
+    let whole = work.path().join("whole");
+    assert_success(&tamping_command(&whole, &short).output().unwrap());
+    let killed = work.path().join("killed");
+    let mut child = common::spawn_until_checkpoint(
+        tamping_command(&killed, &short).args(["--set", &wall("0.1 s")]),
+        &killed.join("checkpoint.bin"),
+        std::time::Duration::ZERO,
+    );
+    child.kill().unwrap();
+    child.wait().unwrap();
+    assert!(
+        !killed.join("summary.json").exists(),
+        "killed before the end"
+    );
+    let resumed = tamping_command(&killed, &short)
+        .args(["--set", &wall("0 s"), "--resume"])
+        .arg(&killed)
+        .output()
+        .unwrap();
+    assert_success(&resumed);
+    assert!(String::from_utf8_lossy(&resumed.stdout).contains("resumed from"));
+    assert_same_bytes(
+        &whole,
+        &killed,
+        &[
+            "residuals.csv",
+            "tamping.csv",
+            "grains.pvd",
+            "driven.pvd",
+            "frames/grains_0002.vtu",
+        ],
+        "a resume from a checkpoint the clock took",
+    );
+}
+
 /// A checkpoint taken by wall time (`output.checkpoint_wall_every`, the step count set
 /// out of reach) lands on whatever step the clock says; a run killed after one resumes
 /// to the bed of a run left alone (which, at the default 30 min, wrote no checkpoint),

@@ -398,6 +398,66 @@ fn the_spectra_of_the_quick_run() {
     }
 }
 
+/// The track run's checkpoint by wall time: the short run below with the step count
+/// out of reach and a checkpoint every 0.1 s of wall time, killed after the first and
+/// resumed with the key changed ("0 s", a run-control key), writes the same sensor and
+/// track series and frames as the run left alone.
+#[cfg(unix)]
+#[test]
+fn a_track_run_checkpointed_by_wall_time_resumes_to_the_same_files() {
+    let base = tempfile::tempdir().unwrap();
+    let short = |wall: &str| {
+        args(&[
+            "--set",
+            "track.settle=\"1 ms\"",
+            "--set",
+            "track.duration=\"3 ms\"",
+            "--set",
+            "track.frames=4",
+            "--set",
+            "track.checkpoint_every=1000000000",
+            "--set",
+            &format!("track.checkpoint_wall_every=\"{wall}\""),
+        ])
+    };
+    let whole = base.path().join("whole");
+    ok(
+        qdem(&whole, &short("0 s")).output().unwrap(),
+        "short track run",
+    );
+    let killed = base.path().join("killed");
+    let mut child = common::spawn_until_checkpoint(
+        &mut qdem(&killed, &short("0.1 s")),
+        &killed.join("checkpoint.bin"),
+        std::time::Duration::ZERO,
+    );
+    child.kill().unwrap();
+    child.wait().unwrap();
+    assert!(
+        !killed.join("summary.json").exists(),
+        "killed before the end"
+    );
+    let resumed = qdem(&killed, &short("0 s"))
+        .arg("--resume")
+        .arg(&killed)
+        .output()
+        .unwrap();
+    let resumed = ok(resumed, "resumed track run");
+    assert!(String::from_utf8_lossy(&resumed.stdout).contains("resumed from"));
+    for file in [
+        "sensors.csv",
+        "track.csv",
+        "deformable.pvd",
+        "rigid.pvd",
+        "frames/rigid_0004.vtu",
+    ] {
+        assert!(
+            std::fs::read(whole.join(file)).unwrap() == std::fs::read(killed.join(file)).unwrap(),
+            "{file} differs after a resume from a checkpoint the clock took"
+        );
+    }
+}
+
 /// A short run (1 ms settling, 3 ms loaded, a checkpoint every 1000 steps) gives the
 /// same files, byte for byte, on 1 and 2 threads (deterministic contact gather,
 /// coloured tetra assembly), and when killed by SIGKILL after a checkpoint and resumed
