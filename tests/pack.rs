@@ -14,7 +14,7 @@ use std::process::Command;
 use std::sync::OnceLock;
 
 use ballast::pack::Packing;
-use common::{figure, read_csv};
+use common::{assert_same_bytes, figure, read_csv};
 use serde_json::Value;
 
 const PACK: &str = env!("CARGO_BIN_EXE_ballast-pack");
@@ -1528,17 +1528,6 @@ fn sprung_tines_give_and_resume_to_the_same_state() {
     assert!((1e-4..0.03).contains(&deflection), "{deflection} m");
 }
 
-/// `files` of `dir` byte for byte as the run left alone wrote them in `whole`.
-fn assert_same_bytes(whole: &Path, dir: &Path, files: &[&str], after: &str) {
-    for file in files {
-        let (a, b) = (
-            std::fs::read(whole.join(file)).unwrap(),
-            std::fs::read(dir.join(file)).unwrap(),
-        );
-        assert!(a == b, "{file} differs after {after}");
-    }
-}
-
 /// The files of a finished packing run that a resumed run must write identically.
 const PACK_FILES: [&str; 6] = [
     "packing.toml",
@@ -1718,16 +1707,10 @@ fn a_tamping_run_checkpointed_by_wall_time_resumes_to_the_same_files() {
     let whole = work.path().join("whole");
     assert_success(&tamping_command(&whole, &short).output().unwrap());
     let killed = work.path().join("killed");
-    let mut child = common::spawn_until_checkpoint(
+    common::kill_at_first_checkpoint(
         tamping_command(&killed, &short).args(["--set", &wall("0.1 s")]),
-        &killed.join("checkpoint.bin"),
-        std::time::Duration::ZERO,
-    );
-    child.kill().unwrap();
-    child.wait().unwrap();
-    assert!(
-        !killed.join("summary.json").exists(),
-        "killed before the end"
+        &killed,
+        "summary.json",
     );
     let resumed = tamping_command(&killed, &short)
         .args(["--set", &wall("0 s"), "--resume"])
@@ -1774,16 +1757,10 @@ fn a_packing_checkpointed_by_wall_time_resumes_to_the_same_bed() {
     assert!(!whole.join("checkpoint.bin").exists());
     let killed = work.path().join("killed");
     let every_half_second = ["--set", "output.checkpoint_wall_every=\"0.5 s\""];
-    let mut child = common::spawn_until_checkpoint(
+    common::kill_at_first_checkpoint(
         &mut pack(&killed, &every_half_second),
-        &killed.join("checkpoint.bin"),
-        std::time::Duration::ZERO,
-    );
-    child.kill().unwrap();
-    child.wait().unwrap();
-    assert!(
-        !killed.join("packing.toml").exists(),
-        "killed before the end"
+        &killed,
+        "packing.toml",
     );
     let saved: PackCheckpoint =
         bincode::deserialize(&std::fs::read(killed.join("checkpoint.bin")).unwrap()).unwrap();

@@ -426,17 +426,7 @@ fn a_track_run_checkpointed_by_wall_time_resumes_to_the_same_files() {
         "short track run",
     );
     let killed = base.path().join("killed");
-    let mut child = common::spawn_until_checkpoint(
-        &mut qdem(&killed, &short("0.1 s")),
-        &killed.join("checkpoint.bin"),
-        std::time::Duration::ZERO,
-    );
-    child.kill().unwrap();
-    child.wait().unwrap();
-    assert!(
-        !killed.join("summary.json").exists(),
-        "killed before the end"
-    );
+    common::kill_at_first_checkpoint(&mut qdem(&killed, &short("0.1 s")), &killed, "summary.json");
     let resumed = qdem(&killed, &short("0 s"))
         .arg("--resume")
         .arg(&killed)
@@ -444,18 +434,18 @@ fn a_track_run_checkpointed_by_wall_time_resumes_to_the_same_files() {
         .unwrap();
     let resumed = ok(resumed, "resumed track run");
     assert!(String::from_utf8_lossy(&resumed.stdout).contains("resumed from"));
-    for file in [
-        "sensors.csv",
-        "track.csv",
-        "deformable.pvd",
-        "rigid.pvd",
-        "frames/rigid_0004.vtu",
-    ] {
-        assert!(
-            std::fs::read(whole.join(file)).unwrap() == std::fs::read(killed.join(file)).unwrap(),
-            "{file} differs after a resume from a checkpoint the clock took"
-        );
-    }
+    common::assert_same_bytes(
+        &whole,
+        &killed,
+        &[
+            "sensors.csv",
+            "track.csv",
+            "deformable.pvd",
+            "rigid.pvd",
+            "frames/rigid_0004.vtu",
+        ],
+        "a resume from a checkpoint the clock took",
+    );
 }
 
 /// A short run (1 ms settling, 3 ms loaded, a checkpoint every 1000 steps) gives the

@@ -123,6 +123,31 @@ pub fn spawn_until_checkpoint(
     child
 }
 
+/// Runs `command` until it has written `dir/checkpoint.bin`, kills it with SIGKILL
+/// and checks it was killed before its end (`end_file`, written last, not there yet).
+pub fn kill_at_first_checkpoint(command: &mut Command, dir: &Path, end_file: &str) {
+    let mut child = spawn_until_checkpoint(
+        command,
+        &dir.join("checkpoint.bin"),
+        std::time::Duration::ZERO,
+    );
+    child.kill().unwrap();
+    child.wait().unwrap();
+    assert!(!dir.join(end_file).exists(), "killed before the end");
+}
+
+/// Checks that each of `files` (relative paths) has the same bytes in `dir` as in
+/// `whole` (a run left alone), naming the file and what `dir` went through (`after`).
+pub fn assert_same_bytes(whole: &Path, dir: &Path, files: &[&str], after: &str) {
+    for file in files {
+        let (a, b) = (
+            std::fs::read(whole.join(file)).unwrap(),
+            std::fs::read(dir.join(file)).unwrap(),
+        );
+        assert!(a == b, "{file} differs after {after}");
+    }
+}
+
 /// A numeric CSV written by the tools: its header and its rows.
 pub fn read_csv(path: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
     let text = std::fs::read_to_string(path).unwrap();
