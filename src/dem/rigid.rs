@@ -174,7 +174,18 @@ impl RigidState {
         omega: &Vector3<f64>,
         k: usize,
     ) -> ([f64; 3], [f64; 3]) {
-        let r = rotation * Vector3::from(shape.spheres[k]);
+        self.sphere_at(&shape.spheres[k], rotation, omega)
+    }
+
+    /// [`Self::sphere`] for a sphere centre `offset` in the principal frame (a copy of
+    /// the shape's, as a step's compact table of touched spheres holds).
+    pub fn sphere_at(
+        &self,
+        offset: &[f64; 3],
+        rotation: &Matrix3<f64>,
+        omega: &Vector3<f64>,
+    ) -> ([f64; 3], [f64; 3]) {
+        let r = rotation * Vector3::from(*offset);
         let v = Vector3::from(self.velocity) + omega.cross(&r);
         (
             [

@@ -36,6 +36,13 @@ pub const BLOWUP_FACTOR: f64 = 10.0;
 /// (2 mm, so the time steps of the runs before stayed as they were).
 pub const STABLE_STEP_GAP: f64 = 2e-3;
 
+/// Sphere and body loops run on rayon from this many items (below it the tasks cost
+/// more than they save).
+const PARALLEL_MIN_SPHERES: usize = 4096;
+
+/// The rigid bodies' kicks and drifts run on rayon from this many bodies.
+const PARALLEL_MIN_BODIES: usize = 512;
+
 /// Where a sphere sits.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum SphereAt {
@@ -418,22 +425,36 @@ impl<'m> MultiBodySolver<'m> {
         let (system, dt, damping) = (self.system, self.dt, self.damping);
         let half = 0.5 * dt;
         let g = system.gravity;
-        let mut gravity_work = 0.0;
-        let mut damped = 0.0;
-        for (r, shape) in state.rigid.iter_mut().zip(&system.rigid) {
-            damped += r.kick(shape, g, half, damping);
+        // Each body on its own (in parallel for many), its energies summed in body
+        // order afterwards: the same bits on any thread count.
+        let first_half = |(r, shape): (&mut RigidState, &RigidShape)| {
+            let damped = r.kick(shape, g, half, damping);
             r.drift(shape, dt);
-            gravity_work += shape.mass
+            let work = shape.mass
                 * dt
                 * (g[0] * r.velocity[0] + g[1] * r.velocity[1] + g[2] * r.velocity[2]);
+            (damped, work, true)
+        };
+        let first = per_body(&mut state.rigid, &system.rigid, first_half);
+        let mut gravity_work = 0.0;
+        let mut damped = 0.0;
+        for &(d, w, _) in &first {
+            damped += d;
+            gravity_work += w;
         }
         self.deformable_pass(state, false)?;
+        let second_half = |(r, shape): (&mut RigidState, &RigidShape)| {
+            let damped = r.kick(shape, g, half, damping);
+            let finite = r.position.iter().chain(&r.velocity).all(|c| c.is_finite());
+            (damped, r.kinetic_energy(shape), finite)
+        };
+        let second = per_body(&mut state.rigid, &system.rigid, second_half);
         let mut kinetic = 0.0;
         let mut finite = true;
-        for (r, shape) in state.rigid.iter_mut().zip(&system.rigid) {
-            damped += r.kick(shape, g, half, damping);
-            kinetic += r.kinetic_energy(shape);
-            finite &= r.position.iter().chain(&r.velocity).all(|c| c.is_finite());
+        for &(d, k, f) in &second {
+            damped += d;
+            kinetic += k;
+            finite &= f;
         }
         state.time += dt;
         state.step += 1;
@@ -476,6 +497,19 @@ impl<'m> MultiBodySolver<'m> {
                 )))
             }
         }
+    }
+}
+
+/// `f` over the rigid bodies with their shapes, in parallel for many bodies, its
+/// results in body order.
+fn per_body<F>(rigid: &mut [RigidState], shapes: &[RigidShape], f: F) -> Vec<(f64, f64, bool)>
+where
+    F: Fn((&mut RigidState, &RigidShape)) -> (f64, f64, bool) + Sync + Send,
+{
+    if rigid.len() >= PARALLEL_MIN_BODIES {
+        rigid.par_iter_mut().zip(shapes).map(f).collect()
+    } else {
+        rigid.iter_mut().zip(shapes).map(f).collect()
     }
 }
 
@@ -522,7 +556,7 @@ fn gather(
             *pv = v.map_or([0.0; 3], |v| v[node as usize]);
         }
     };
-    if nodes >= 4096 {
+    if nodes >= PARALLEL_MIN_SPHERES {
         sx_nodes
             .par_iter_mut()
             .zip(sv_nodes.par_iter_mut())
@@ -547,7 +581,7 @@ fn gather(
     let body = |(b, (px, pv)): (usize, &mut SphereSlices)| {
         let (r, shape) = (&rigid[b], &system.rigid[b]);
         let mine = only.and_then(|o| o.of(b));
-        if mine.is_some_and(|m| m.is_empty()) {
+        if mine.is_some_and(|(m, _)| m.is_empty()) {
             return;
         }
         let turn = r.rotation().to_rotation_matrix().into_inner();
@@ -558,16 +592,16 @@ fn gather(
                     (*p, *q) = r.sphere(shape, &turn, &omega, k);
                 }
             }
-            Some(mine) => {
+            Some((mine, offsets)) => {
                 let first = system.rigid_spheres[b].start;
-                for &s in mine {
+                for (&s, offset) in mine.iter().zip(offsets) {
                     let k = s as usize - first;
-                    (px[k], pv[k]) = r.sphere(shape, &turn, &omega, k);
+                    (px[k], pv[k]) = r.sphere_at(offset, &turn, &omega);
                 }
             }
         }
     };
-    if total - nodes >= 4096 {
+    if total - nodes >= PARALLEL_MIN_SPHERES {
         bodies.par_iter_mut().enumerate().for_each(body);
     } else {
         bodies.iter_mut().enumerate().for_each(body);
@@ -651,9 +685,10 @@ fn contact_forces(
             break;
         }
     }
-    // Only touched spheres carry a force (the others add zeros).
+    // Only touched spheres carry a force (the others add zeros). Each body sums its
+    // own, so the bodies may run in parallel with the same bits.
     let active = spheres.active();
-    for (b, body) in rigid.iter_mut().enumerate() {
+    let sum = |(b, body): (usize, &mut RigidState)| {
         let c = body.position;
         let mut force = [0.0; 3];
         let mut torque = [0.0; 3];
@@ -668,6 +703,11 @@ fn contact_forces(
         }
         body.force = force;
         body.torque = torque;
+    };
+    if active.active.len() >= PARALLEL_MIN_SPHERES {
+        rigid.par_iter_mut().enumerate().for_each(sum);
+    } else {
+        rigid.iter_mut().enumerate().for_each(sum);
     }
     totals
 }
