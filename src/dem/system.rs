@@ -433,12 +433,12 @@ impl<'m> MultiBodySolver<'m> {
             let work = shape.mass
                 * dt
                 * (g[0] * r.velocity[0] + g[1] * r.velocity[1] + g[2] * r.velocity[2]);
-            (damped, work, true)
+            (damped, work)
         };
         let first = per_body(&mut state.rigid, &system.rigid, first_half);
         let mut gravity_work = 0.0;
         let mut damped = 0.0;
-        for &(d, w, _) in &first {
+        for &(d, w) in &first {
             damped += d;
             gravity_work += w;
         }
@@ -502,9 +502,10 @@ impl<'m> MultiBodySolver<'m> {
 
 /// `f` over the rigid bodies with their shapes, in parallel for many bodies, its
 /// results in body order.
-fn per_body<F>(rigid: &mut [RigidState], shapes: &[RigidShape], f: F) -> Vec<(f64, f64, bool)>
+fn per_body<R, F>(rigid: &mut [RigidState], shapes: &[RigidShape], f: F) -> Vec<R>
 where
-    F: Fn((&mut RigidState, &RigidShape)) -> (f64, f64, bool) + Sync + Send,
+    R: Send,
+    F: Fn((&mut RigidState, &RigidShape)) -> R + Sync + Send,
 {
     if rigid.len() >= PARALLEL_MIN_BODIES {
         rigid.par_iter_mut().zip(shapes).map(f).collect()
