@@ -54,8 +54,30 @@ pub struct SphereSet {
 }
 
 impl SphereSet {
-    fn law(&self, a: u16, b: u16) -> &ContactLaw {
-        &self.laws[a as usize * self.materials + b as usize]
+    fn law_index(&self, a: u16, b: u16) -> u32 {
+        (a as usize * self.materials + b as usize) as u32
+    }
+
+    /// The constants of a pair ([`PairConstants`]), in the arithmetic the force loop
+    /// used before it read them from here (the same bits).
+    fn constants(&self, p: &PairState) -> PairConstants {
+        let i = p.first as usize;
+        if p.second & PLANE != 0 {
+            let plane = &self.planes[(p.second & !PLANE) as usize];
+            PairConstants {
+                reach: self.radius[i],
+                m_eff: self.mass[i],
+                law: self.law_index(plane.material, self.material[i]),
+            }
+        } else {
+            let j = p.second as usize;
+            let (mi, mj) = (self.mass[i], self.mass[j]);
+            PairConstants {
+                reach: self.radius[i] + self.radius[j],
+                m_eff: mi * mj / (mi + mj),
+                law: self.law_index(self.material[i], self.material[j]),
+            }
+        }
     }
 
     /// The largest radius.
@@ -118,6 +140,20 @@ pub struct RestingPair {
     pub share: f64,
 }
 
+/// What a pair's force needs of its two members that does not change during a run,
+/// gathered at each rebuild beside the pair list: the force loop then reads two
+/// scattered sphere records per pair (position, velocity) instead of five (with
+/// radius, mass and material), the cache misses of a large track.
+#[derive(Debug, Clone, Copy)]
+struct PairConstants {
+    /// r_i + r_j for two spheres, r_i for a sphere and a plane (m).
+    reach: f64,
+    /// The dashpot's reduced mass (kg): m_i m_j / (m_i + m_j), or m_i against a plane.
+    m_eff: f64,
+    /// The pair's law: an index into [`SphereSet::laws`].
+    law: u32,
+}
+
 /// Totals of one contact evaluation.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct ContactTotals {
@@ -151,6 +187,8 @@ pub struct Contacts {
     /// gather[offsets[s]..offsets[s + 1]]: (pair index, +1 second / −1 first) of sphere s.
     offsets: Vec<u32>,
     gather: Vec<(u32, f64)>,
+    /// One per candidate pair, in the list's order.
+    constants: Vec<PairConstants>,
     /// The spheres with at least one candidate pair, ascending: the only ones whose
     /// force can be non-zero until the next rebuild.
     touched: Vec<u32>,
@@ -175,6 +213,7 @@ impl Contacts {
             skin,
             offsets: Vec::new(),
             gather: Vec::new(),
+            constants: Vec::new(),
             touched: Vec::new(),
             touched_forces: Vec::new(),
             clear_forces: true,
@@ -361,6 +400,7 @@ impl Contacts {
                 *f += 1;
             }
         }
+        self.constants = pairs.iter().map(|p| self.set.constants(p)).collect();
         self.touched = (0..n as u32)
             .filter(|&s| counts[s as usize + 1] > counts[s as usize])
             .collect();
@@ -422,43 +462,39 @@ impl Contacts {
         dt: f64,
         forces: &mut [[f64; 3]],
     ) -> ContactTotals {
+        assert_eq!(
+            self.constants.len(),
+            state.pairs.len(),
+            "contact list not indexed: refresh or restore it first"
+        );
         let set = &self.set;
         let period = set.period.as_ref();
-        let one = |p: &mut PairState| -> (PairForce, f64, bool) {
+        let one = |(p, c): (&mut PairState, &PairConstants)| -> (PairForce, f64, bool) {
             let i = p.first as usize;
-            let (n, overlap, v_rel, law, m_eff, plane) = if p.second & PLANE != 0 {
+            let law = &set.laws[c.law as usize];
+            let (n, overlap, v_rel, plane) = if p.second & PLANE != 0 {
                 let plane = &set.planes[(p.second & !PLANE) as usize];
-                let gap = dot(sub(positions[i], plane.point), plane.normal) - set.radius[i];
+                let gap = dot(sub(positions[i], plane.point), plane.normal) - c.reach;
                 // The sphere is the "second" body seen from the plane: n points to it.
-                let law = set.law(plane.material, set.material[i]);
-                (plane.normal, -gap, velocities[i], law, set.mass[i], true)
+                (plane.normal, -gap, velocities[i], true)
             } else {
                 let j = p.second as usize;
                 let d = Period::difference(period, positions[i], positions[j]);
                 // Apart (beyond the rest overlap): no force, and no square root.
-                let reach = set.radius[i] + set.radius[j] - p.rest;
+                let reach = c.reach - p.rest;
                 if dot(d, d) >= reach * reach {
                     p.xi = [0.0; 3];
                     p.force = [0.0; 3];
                     return (PairForce::default(), 0.0, false);
                 }
                 let dist = norm(d);
-                let overlap = set.radius[i] + set.radius[j] - dist;
+                let overlap = c.reach - dist;
                 let n = if dist > 0.0 {
                     scale(d, 1.0 / dist)
                 } else {
                     [0.0, 0.0, 1.0]
                 };
-                let (mi, mj) = (set.mass[i], set.mass[j]);
-                let law = set.law(set.material[i], set.material[j]);
-                (
-                    n,
-                    overlap,
-                    sub(velocities[j], velocities[i]),
-                    law,
-                    mi * mj / (mi + mj),
-                    false,
-                )
+                (n, overlap, sub(velocities[j], velocities[i]), false)
             };
             let overlap = overlap - p.rest;
             if overlap <= 0.0 {
@@ -466,7 +502,7 @@ impl Contacts {
                 p.force = [0.0; 3];
                 return (PairForce::default(), 0.0, plane);
             }
-            let mut f = law.force(n, overlap, v_rel, &mut p.xi, m_eff, dt);
+            let mut f = law.force(n, overlap, v_rel, &mut p.xi, c.m_eff, dt);
             if p.share != 1.0 {
                 // One of n resting pairs sharing a spring. The slider's limit scales with
                 // the normal force, so the spring slips where the full one would; the
@@ -494,16 +530,28 @@ impl Contacts {
         };
         // Fixed chunks of pairs, each folded in order, then the chunk totals folded in
         // order: the sums do not depend on the thread count.
-        let chunk = |pairs: &mut [PairState]| {
+        let chunk = |(pairs, constants): (&mut [PairState], &[PairConstants])| {
             pairs
                 .iter_mut()
+                .zip(constants)
                 .map(one)
                 .fold(ContactTotals::default(), fold)
         };
+        let constants = &self.constants;
         let partials: Vec<ContactTotals> = if state.pairs.len() >= PARALLEL_MIN_PAIRS {
-            state.pairs.par_chunks_mut(PAIR_CHUNK).map(chunk).collect()
+            state
+                .pairs
+                .par_chunks_mut(PAIR_CHUNK)
+                .zip(constants.par_chunks(PAIR_CHUNK))
+                .map(chunk)
+                .collect()
         } else {
-            state.pairs.chunks_mut(PAIR_CHUNK).map(chunk).collect()
+            state
+                .pairs
+                .chunks_mut(PAIR_CHUNK)
+                .zip(constants.chunks(PAIR_CHUNK))
+                .map(chunk)
+                .collect()
         };
         let mut totals = partials
             .into_iter()
