@@ -43,11 +43,13 @@
       later, took up to 21-29 % longer, so versions run one after the other, an hour
       each, compare the machine's spells as much as the versions (docs/tamping.md).
       Each turn's clocks are kept in DIR/version-N/turns/, and the tables end with
-      versions 5 against 4 turn by turn (the parallel part's efficiency in each).
+      versions 1-3 turn by turn (versions 2 and 3's speedup in each) and versions 5
+      against 4 turn by turn (the parallel part's efficiency in each).
   tamping_report.py table DIR
       the same tables from the versions finished so far in a bench directory DIR
       (e.g. results/bench-tamping-table3), while the bench runs or after it stopped;
-      before any version has finished, versions 5 against 4 over the turns run so far.
+      before any version has finished, versions 1-3 and 5 against 4 over the turns
+      run so far.
   tamping_report.py creep --pack BIN --nscd BIN --seeds N --out DIR [--until T] [--sweeps 50,100]
       the interpenetration the two DDM drivers leave in a bed at rest: the quick preset
       on the ensemble's beds (below; seeds 1 to N, reused from DIR) without the lift and
@@ -402,30 +404,69 @@ def turn_times(directory):
     return times
 
 
+def shared_turns(out, versions):
+    """{version: turn times} of `versions` and the steps where all of them kept their
+    clocks (ascending), or None when they share fewer than two."""
+    times = {v: turn_times(os.path.join(out, "version-%d" % v)) for v in versions}
+    steps = sorted(set.intersection(*(set(t) for t in times.values())))
+    return (times, steps) if len(steps) >= 2 else None
+
+
+def print_spread(label, values, percent=False):
+    """The median and range of a per-turn figure."""
+    if values:
+        scale, fmt = (100, "%.1f %%") if percent else (1, "%.2f")
+        median, low, high = (fmt % (scale * x) for x in
+                             (statistics.median(values), min(values), max(values)))
+        print("\nover %d turns, %s: median %s, from %s to %s"
+              % (len(values), label, median, low, high))
+
+
 def print_turns(out):
     """Versions 5 against 4 turn by turn (the spans between the steps where both kept
     their clocks): the parallel part's efficiency in each, a measure of how much the
     machine's spells move it."""
-    t4 = turn_times(os.path.join(out, "version-4"))
-    t5 = turn_times(os.path.join(out, "version-5"))
-    steps = sorted(set(t4) & set(t5))
-    if len(steps) < 2:
+    shared = shared_turns(out, (4, 5))
+    if shared is None:
         return False
-    threads = VERSIONS[4][2] / VERSIONS[5][2]
+    (times, steps), threads = shared, VERSIONS[4][2] / VERSIONS[5][2]
     print("\n## The parallel part turn by turn (versions 5 and 4, subdomain sweeps)\n")
     print("| steps | version 4 (s) | version 5 (s) | efficiency |")
     print("|---|---:|---:|---:|")
     effs = []
     for a, b in zip(steps, steps[1:]):
-        sub4 = t4[b]["sub"] - t4[a]["sub"]
-        sub5 = t5[b]["sub"] - t5[a]["sub"]
+        sub4 = times[4][b]["sub"] - times[4][a]["sub"]
+        sub5 = times[5][b]["sub"] - times[5][a]["sub"]
         if sub4 <= 0 or sub5 <= 0:
             continue
         effs.append(sub5 / (threads * sub4))
         print("| %d–%d | %.1f | %.1f | %.1f %% |" % (a + 1, b, sub4, sub5, 100 * effs[-1]))
-    if effs:
-        print("\nover %d turns: median %.1f %%, from %.1f to %.1f %%"
-              % (len(effs), 100 * statistics.median(effs), 100 * min(effs), 100 * max(effs)))
+    print_spread("the efficiency", effs, percent=True)
+    return True
+
+
+def print_table3_turns(out):
+    """Versions 1-3 turn by turn (the Table 3 versions' whole stepping between the
+    steps where all three kept their clocks) with versions 2 and 3's speedup over
+    version 1 in each: how the machine's spells and the tamping phase move them."""
+    shared = shared_turns(out, (1, 2, 3))
+    if shared is None:
+        return False
+    times, steps = shared
+    print("\n## The Table 3 versions turn by turn (whole stepping, s)\n")
+    print("| steps | version 1 | version 2 | version 3 | speedup 2 | speedup 3 |")
+    print("|---|---:|---:|---:|---:|---:|")
+    speedups = {2: [], 3: []}
+    for a, b in zip(steps, steps[1:]):
+        span = {v: times[v][b]["total"] - times[v][a]["total"] for v in (1, 2, 3)}
+        if min(span.values()) <= 0:
+            continue
+        for v in (2, 3):
+            speedups[v].append(span[1] / span[v])
+        print("| %d–%d | %.1f | %.1f | %.1f | %.2f | %.2f |"
+              % (a + 1, b, span[1], span[2], span[3], speedups[2][-1], speedups[3][-1]))
+    print_spread("version 2's speedup", speedups[2])
+    print_spread("version 3's speedup", speedups[3])
     return True
 
 
@@ -488,6 +529,7 @@ def bench(nscd, preset, steps, out, repeat=1, fresh=False, versions=tuple(VERSIO
             else:
                 keep_turn_clocks(d)
     print_tables(runs, preset, steps, note, repeat)
+    print_table3_turns(out)
     print_turns(out)
 
 
@@ -593,7 +635,8 @@ def table(out):
         if os.path.exists(os.path.join(d, "summary.json")):
             runs[v] = [read_summary(d)]
     if not any(runs.values()):
-        if print_turns(out):
+        # Both run, whichever has turns (a bench of 1-3 and one of 4-5 share a DIR).
+        if print_table3_turns(out) | print_turns(out):
             return
         sys.exit("tamping_report: %s: no finished version (no version-N/summary.json)" % out)
     first = next(r for r in runs.values() if r)[0]
@@ -604,6 +647,7 @@ def table(out):
     except (OSError, ValueError, KeyError):
         note = "binary not recorded"
     print_tables(runs, first["preset"], first["figures"]["steps"], note)
+    print_table3_turns(out)
     print_turns(out)
 
 
