@@ -58,8 +58,8 @@ impl SphereSet {
         (a as usize * self.materials + b as usize) as u32
     }
 
-    /// The constants of a pair ([`PairConstants`]), in the arithmetic the force loop
-    /// used before it read them from here (the same bits).
+    /// The constants of a pair ([`PairConstants`]), each computed in one fixed order of
+    /// operations, so the force loop's bits do not depend on when they were gathered.
     fn constants(&self, p: &PairState) -> PairConstants {
         let i = p.first as usize;
         if p.second & PLANE != 0 {
