@@ -470,6 +470,13 @@ def print_table3_turns(out):
     return True
 
 
+def print_all_turns(out):
+    """Both turn-by-turn tables, each where its versions kept turns (a bench of
+    versions 1-3 and one of 4-5 may share DIR); whether either was printed."""
+    table3 = print_table3_turns(out)
+    return print_turns(out) or table3
+
+
 def parse_versions(text):
     """The bench's --versions list ("4,5"): known versions, each once, in the order given."""
     try:
@@ -529,8 +536,7 @@ def bench(nscd, preset, steps, out, repeat=1, fresh=False, versions=tuple(VERSIO
             else:
                 keep_turn_clocks(d)
     print_tables(runs, preset, steps, note, repeat)
-    print_table3_turns(out)
-    print_turns(out)
+    print_all_turns(out)
 
 
 def print_tables(runs, preset, steps, note, repeat=1):
@@ -635,8 +641,7 @@ def table(out):
         if os.path.exists(os.path.join(d, "summary.json")):
             runs[v] = [read_summary(d)]
     if not any(runs.values()):
-        # Both run, whichever has turns (a bench of 1-3 and one of 4-5 share a DIR).
-        if print_table3_turns(out) | print_turns(out):
+        if print_all_turns(out):
             return
         sys.exit("tamping_report: %s: no finished version (no version-N/summary.json)" % out)
     first = next(r for r in runs.values() if r)[0]
@@ -647,8 +652,7 @@ def table(out):
     except (OSError, ValueError, KeyError):
         note = "binary not recorded"
     print_tables(runs, first["preset"], first["figures"]["steps"], note)
-    print_table3_turns(out)
-    print_turns(out)
+    print_all_turns(out)
 
 
 def quick_tamping(nscd, packing, driver, *settings):

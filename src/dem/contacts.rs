@@ -471,7 +471,6 @@ impl Contacts {
         let period = set.period.as_ref();
         let one = |(p, c): (&mut PairState, &PairConstants)| -> (PairForce, f64, bool) {
             let i = p.first as usize;
-            let law = &set.laws[c.law as usize];
             let (n, overlap, v_rel, plane) = if p.second & PLANE != 0 {
                 let plane = &set.planes[(p.second & !PLANE) as usize];
                 let gap = dot(sub(positions[i], plane.point), plane.normal) - c.reach;
@@ -502,6 +501,7 @@ impl Contacts {
                 p.force = [0.0; 3];
                 return (PairForce::default(), 0.0, plane);
             }
+            let law = &set.laws[c.law as usize];
             let mut f = law.force(n, overlap, v_rel, &mut p.xi, c.m_eff, dt);
             if p.share != 1.0 {
                 // One of n resting pairs sharing a spring. The slider's limit scales with
