@@ -107,9 +107,6 @@ pub struct PairState {
     /// Share of the law's force this pair carries: 1, or 1/n for one of the n resting
     /// pairs of a pair of bodies when the set's `shared_rest` is on.
     pub share: f64,
-    /// Force on the second member this step (N).
-    #[serde(skip)]
-    pub force: [f64; 3],
 }
 
 /// The evolving contact state (what a checkpoint stores).
@@ -189,6 +186,10 @@ pub struct Contacts {
     gather: Vec<(u32, f64)>,
     /// One per candidate pair, in the list's order.
     constants: Vec<PairConstants>,
+    /// Each candidate pair's force on its second member this step (N), in the list's
+    /// order: apart from [`PairState`] so that the per-sphere gather, which reads them
+    /// in a scattered order, loads 24 bytes a pair instead of the whole record.
+    pair_forces: Vec<[f64; 3]>,
     /// The spheres with at least one candidate pair, ascending: the only ones whose
     /// force can be non-zero until the next rebuild.
     touched: Vec<u32>,
@@ -214,6 +215,7 @@ impl Contacts {
             offsets: Vec::new(),
             gather: Vec::new(),
             constants: Vec::new(),
+            pair_forces: Vec::new(),
             touched: Vec::new(),
             touched_forces: Vec::new(),
             clear_forces: true,
@@ -279,7 +281,6 @@ impl Contacts {
                 xi: [0.0; 3],
                 rest: 0.0,
                 share: 1.0,
-                force: [0.0; 3],
             })
             .collect();
         fresh.sort_unstable_by_key(|p| (p.first, p.second));
@@ -401,6 +402,7 @@ impl Contacts {
             }
         }
         self.constants = pairs.iter().map(|p| self.set.constants(p)).collect();
+        self.pair_forces = vec![[0.0; 3]; pairs.len()];
         self.touched = (0..n as u32)
             .filter(|&s| counts[s as usize + 1] > counts[s as usize])
             .collect();
@@ -469,7 +471,8 @@ impl Contacts {
         );
         let set = &self.set;
         let period = set.period.as_ref();
-        let one = |(p, c): (&mut PairState, &PairConstants)| -> (PairForce, f64, bool) {
+        type Pair<'a> = ((&'a mut PairState, &'a mut [f64; 3]), &'a PairConstants);
+        let one = |((p, pf), c): Pair| -> (PairForce, f64, bool) {
             let i = p.first as usize;
             let (n, overlap, v_rel, plane) = if p.second & PLANE != 0 {
                 let plane = &set.planes[(p.second & !PLANE) as usize];
@@ -482,8 +485,8 @@ impl Contacts {
                 // Apart (beyond the rest overlap): no force, and no square root.
                 let reach = c.reach - p.rest;
                 if dot(d, d) >= reach * reach {
-                    p.xi = [0.0; 3];
-                    p.force = [0.0; 3];
+                    forget_spring(p);
+                    *pf = [0.0; 3];
                     return (PairForce::default(), 0.0, false);
                 }
                 let dist = norm(d);
@@ -497,8 +500,8 @@ impl Contacts {
             };
             let overlap = overlap - p.rest;
             if overlap <= 0.0 {
-                p.xi = [0.0; 3];
-                p.force = [0.0; 3];
+                forget_spring(p);
+                *pf = [0.0; 3];
                 return (PairForce::default(), 0.0, plane);
             }
             let law = &set.laws[c.law as usize];
@@ -510,7 +513,7 @@ impl Contacts {
                 // law's damping ratio.
                 f = f.scaled(p.share);
             }
-            p.force = f.force;
+            *pf = f.force;
             (f, overlap, plane)
         };
         let fold = |mut t: ContactTotals, (f, overlap, plane): (PairForce, f64, bool)| {
@@ -530,18 +533,24 @@ impl Contacts {
         };
         // Fixed chunks of pairs, each folded in order, then the chunk totals folded in
         // order: the sums do not depend on the thread count.
-        let chunk = |(pairs, constants): (&mut [PairState], &[PairConstants])| {
+        type Chunk<'a> = (
+            (&'a mut [PairState], &'a mut [[f64; 3]]),
+            &'a [PairConstants],
+        );
+        let chunk = |((pairs, forces), constants): Chunk| {
             pairs
                 .iter_mut()
+                .zip(forces.iter_mut())
                 .zip(constants)
                 .map(one)
                 .fold(ContactTotals::default(), fold)
         };
-        let constants = &self.constants;
+        let (constants, pair_forces) = (&self.constants, &mut self.pair_forces);
         let partials: Vec<ContactTotals> = if state.pairs.len() >= PARALLEL_MIN_PAIRS {
             state
                 .pairs
                 .par_chunks_mut(PAIR_CHUNK)
+                .zip(pair_forces.par_chunks_mut(PAIR_CHUNK))
                 .zip(constants.par_chunks(PAIR_CHUNK))
                 .map(chunk)
                 .collect()
@@ -549,6 +558,7 @@ impl Contacts {
             state
                 .pairs
                 .chunks_mut(PAIR_CHUNK)
+                .zip(pair_forces.chunks_mut(PAIR_CHUNK))
                 .zip(constants.chunks(PAIR_CHUNK))
                 .map(chunk)
                 .collect()
@@ -569,13 +579,13 @@ impl Contacts {
             totals.mean_overlap /= totals.touching as f64;
         }
         totals.candidates = state.pairs.len();
-        let pairs = &state.pairs;
+        let pair_forces = &self.pair_forces;
         let (offsets, gather) = (&self.offsets, &self.gather);
         let sum = |(f, &s): (&mut [f64; 3], &u32)| {
             let s = s as usize;
             let mut acc = [0.0; 3];
             for &(k, sign) in &gather[offsets[s] as usize..offsets[s + 1] as usize] {
-                let pf = pairs[k as usize].force;
+                let pf = pair_forces[k as usize];
                 for d in 0..3 {
                     acc[d] += sign * pf[d];
                 }
@@ -595,6 +605,16 @@ impl Contacts {
             forces[s as usize] = *f;
         }
         totals
+    }
+}
+
+/// Zeroes a pair's tangential spring when it is apart, writing only when it is not
+/// zero already (compared bit for bit, so a −0 is still reset to +0): most candidate
+/// pairs stay apart step after step, and leaving their records unwritten keeps those
+/// cache lines clean.
+fn forget_spring(p: &mut PairState) {
+    if p.xi.iter().any(|x| x.to_bits() != 0) {
+        p.xi = [0.0; 3];
     }
 }
 
