@@ -19,6 +19,14 @@
 //! from each body's own table they missed the cache one by one: on the paper bed that
 //! load was most of the gather's time, and the gather a quarter of the step
 //! (measured 2026-12-07, `perf` on the five-car run).
+//!
+//! The touched spheres' positions and velocities also live in arrays of their own, in
+//! the order of [`Contacts::touched`] ([`SphereBuffers::tx`], [`SphereBuffers::tv`]):
+//! a partial step writes its rigid ones there directly, the force loop reads both
+//! members of every pair from them, and the bodies sum their forces from them. Read
+//! from the whole set's arrays (2.8 MB each on the paper bed) those loads missed the
+//! cache: with the compact arrays the paper bed's step took 0.76 of its time on 1
+//! thread (2026-12-07, 10 ms of the paper preset, three rounds each, the same bits).
 
 use std::ops::Range;
 
@@ -38,8 +46,14 @@ pub struct SphereBuffers {
     pub x: Vec<[f64; 3]>,
     /// Velocities (m/s), likewise.
     pub v: Vec<[f64; 3]>,
-    /// Contact forces (N), zero for spheres without a candidate pair.
-    pub f: Vec<[f64; 3]>,
+    /// The touched spheres' positions (m), in the order of [`Contacts::touched`]: what
+    /// the force loop and the sums onto the bodies read (module doc).
+    pub tx: Vec<[f64; 3]>,
+    /// Their velocities (m/s).
+    pub tv: Vec<[f64; 3]>,
+    /// How many of the touched spheres are node spheres (they come first; the
+    /// touched rigid spheres, `active`, follow).
+    touched_nodes: usize,
     /// Per rigid body: the largest distance of a sphere centre from its mass centre.
     reach: Vec<f64>,
     /// Per rigid body: centre and orientation at the last rebuild (none until a
@@ -101,6 +115,20 @@ impl<'a> Placement<'a> {
     }
 }
 
+/// What one gather writes ([`SphereBuffers::targets`]).
+#[derive(Debug)]
+pub struct GatherTargets<'a> {
+    /// A partial step's placement; `None`: every sphere.
+    pub only: Option<Placement<'a>>,
+    /// Positions of the whole set.
+    pub x: &'a mut [[f64; 3]],
+    /// Velocities of the whole set.
+    pub v: &'a mut [[f64; 3]],
+    /// A partial step's touched rigid spheres' positions and velocities, in the order
+    /// of `only`'s active spheres.
+    pub touched: Option<(&'a mut [[f64; 3]], &'a mut [[f64; 3]])>,
+}
+
 impl SphereBuffers {
     /// Buffers for `system`'s spheres, nothing known yet.
     pub fn new(system: &MultiBody) -> Self {
@@ -119,7 +147,9 @@ impl SphereBuffers {
         SphereBuffers {
             x: vec![[0.0; 3]; n],
             v: vec![[0.0; 3]; n],
-            f: vec![[0.0; 3]; n],
+            tx: Vec::new(),
+            tv: Vec::new(),
+            touched_nodes: 0,
             reach,
             poses: None,
             active: Vec::new(),
@@ -157,21 +187,55 @@ impl SphereBuffers {
         true
     }
 
-    /// What a gather fills: the spheres of a partial step's [`Placement`] if
-    /// `partial` (else all), and the position and velocity buffers.
-    pub fn targets(
-        &mut self,
-        partial: bool,
-    ) -> (Option<Placement<'_>>, &mut [[f64; 3]], &mut [[f64; 3]]) {
-        let only = partial.then_some(Placement {
-            active: ActiveSpheres {
-                active: &self.active,
-                offsets: &self.offsets,
-                ranges: &self.ranges,
-            },
-            whole: &self.whole,
-        });
-        (only, &mut self.x, &mut self.v)
+    /// What a gather fills: for a partial step (`partial`), its [`Placement`], and
+    /// the touched rigid spheres' entries of [`Self::tx`] and [`Self::tv`] (those of
+    /// the bodies not marked whole are written there only); the whole set's position
+    /// and velocity buffers.
+    pub fn targets(&mut self, partial: bool) -> GatherTargets<'_> {
+        let n = self.touched_nodes;
+        let (only, touched) = if partial {
+            let only = Placement {
+                active: ActiveSpheres {
+                    active: &self.active,
+                    offsets: &self.offsets,
+                    ranges: &self.ranges,
+                },
+                whole: &self.whole,
+            };
+            (Some(only), Some((&mut self.tx[n..], &mut self.tv[n..])))
+        } else {
+            (None, None)
+        };
+        GatherTargets {
+            only,
+            x: &mut self.x,
+            v: &mut self.v,
+            touched,
+        }
+    }
+
+    /// After a gather of every sphere: the touched spheres' entries of [`Self::tx`]
+    /// and [`Self::tv`] copied from the whole set's buffers.
+    pub fn fill_touched(&mut self, touched: &[u32]) {
+        for ((t, u), &s) in self.tx.iter_mut().zip(self.tv.iter_mut()).zip(touched) {
+            *t = self.x[s as usize];
+            *u = self.v[s as usize];
+        }
+    }
+
+    /// After a partial step's gather: the touched node spheres' entries copied from
+    /// the whole set's buffers (the rigid ones are written by the gather).
+    pub fn fill_touched_nodes(&mut self, touched: &[u32]) {
+        let n = self.touched_nodes;
+        for ((t, u), &s) in self.tx[..n].iter_mut().zip(&mut self.tv[..n]).zip(touched) {
+            *t = self.x[s as usize];
+            *u = self.v[s as usize];
+        }
+    }
+
+    /// How many of the touched spheres are node spheres (the first ones).
+    pub fn touched_nodes(&self) -> usize {
+        self.touched_nodes
     }
 
     /// The spheres a partial step must scan for staleness: the node spheres and every
@@ -234,6 +298,9 @@ impl SphereBuffers {
             start = end;
         }
         debug_assert_eq!(start, self.active.len());
+        self.touched_nodes = contacts.touched().len() - self.active.len();
+        self.tx.resize(contacts.touched().len(), [0.0; 3]);
+        self.tv.resize(contacts.touched().len(), [0.0; 3]);
         self.offsets.clear();
         self.offsets.extend(
             self.active

@@ -23,7 +23,7 @@ use serde::{Deserialize, Serialize};
 use super::contacts::{ContactState, ContactTotals, Contacts, SphereSet};
 use super::law::cross;
 use super::rigid::{RigidShape, RigidState};
-use super::spheres::{Placement, SphereBuffers};
+use super::spheres::{GatherTargets, SphereBuffers};
 use crate::qdem::{stability, Boundary, QdemModel, QdemOptions, QdemSolver, State};
 use crate::{Error, Result};
 
@@ -329,9 +329,7 @@ impl<'m> MultiBodySolver<'m> {
             deformable,
             None,
             &state.rigid,
-            None,
-            &mut sp.x,
-            &mut sp.v,
+            sp.targets(false),
         );
         let rebuilt = self.contacts.refresh(&mut state.contacts, &sp.x);
         sp.sync(
@@ -526,17 +524,23 @@ fn state_energy(deformable: Option<&State>, e: &SystemEnergies) -> f64 {
 type SphereSlices<'a> = (&'a mut [[f64; 3]], &'a mut [[f64; 3]]);
 
 /// Sphere positions and velocities from the node arrays and the rigid states: every
-/// node sphere, and of the rigid bodies every sphere, or only the `only` ones
-/// ([`SphereBuffers::plan`]).
+/// node sphere, and of the rigid bodies every sphere, or for a partial step
+/// ([`SphereBuffers::plan`]) every sphere of the bodies marked whole and the touched
+/// ones of the others, these into the touched spheres' own buffers (the whole bodies'
+/// touched spheres are copied there too).
 fn gather(
     system: &MultiBody,
     x: Option<&[[f64; 3]]>,
     v: Option<&[[f64; 3]]>,
     rigid: &[RigidState],
-    only: Option<Placement>,
-    sx: &mut [[f64; 3]],
-    sv: &mut [[f64; 3]],
+    targets: GatherTargets,
 ) {
+    let GatherTargets {
+        only,
+        x: sx,
+        v: sv,
+        touched,
+    } = targets;
     let turns: Vec<nalgebra::Matrix3<f64>> = match (x, &system.model) {
         (Some(x), Some(model)) if !x.is_empty() && system.insets => system
             .deformable
@@ -572,14 +576,23 @@ fn gather(
     }
     // One task per rigid body: its rotation and angular velocity once, then its spheres
     // (all, or its touched ones: `k` counts from the body's first sphere).
+    // Each body's run of the touched rigid spheres' buffers (a partial step's).
+    let (mut tx_rigid, mut tv_rigid): (&mut [[f64; 3]], &mut [[f64; 3]]) = match touched {
+        Some((tx, tv)) => (tx, tv),
+        None => (&mut [], &mut []),
+    };
     let mut bodies = Vec::with_capacity(rigid.len());
-    for range in &system.rigid_spheres {
+    for (b, range) in system.rigid_spheres.iter().enumerate() {
         let (x_here, x_rest) = std::mem::take(&mut sx_rigid).split_at_mut(range.len());
         let (v_here, v_rest) = std::mem::take(&mut sv_rigid).split_at_mut(range.len());
-        bodies.push((x_here, v_here));
         (sx_rigid, sv_rigid) = (x_rest, v_rest);
+        let mine = only.map_or(0, |o| o.active.of(b).len());
+        let (tx_here, tx_rest) = std::mem::take(&mut tx_rigid).split_at_mut(mine);
+        let (tv_here, tv_rest) = std::mem::take(&mut tv_rigid).split_at_mut(mine);
+        (tx_rigid, tv_rigid) = (tx_rest, tv_rest);
+        bodies.push(((x_here, v_here), (tx_here, tv_here)));
     }
-    let body = |(b, (px, pv)): (usize, &mut SphereSlices)| {
+    let body = |(b, ((px, pv), (tx, tv))): (usize, &mut (SphereSlices, SphereSlices))| {
         let (r, shape) = (&rigid[b], &system.rigid[b]);
         let mine = only.and_then(|o| o.of(b));
         if mine.is_some_and(|(m, _)| m.is_empty()) {
@@ -592,12 +605,18 @@ fn gather(
                 for (k, (p, q)) in px.iter_mut().zip(pv.iter_mut()).enumerate() {
                     (*p, *q) = r.sphere(shape, &turn, &omega, k);
                 }
+                // A body marked whole in a partial step: its touched spheres too.
+                if let Some(o) = only {
+                    let first = system.rigid_spheres[b].start;
+                    for (k, &s) in o.active.of(b).iter().enumerate() {
+                        let s = s as usize - first;
+                        (tx[k], tv[k]) = (px[s], pv[s]);
+                    }
+                }
             }
-            Some((mine, offsets)) => {
-                let first = system.rigid_spheres[b].start;
-                for (&s, offset) in mine.iter().zip(offsets) {
-                    let k = s as usize - first;
-                    (px[k], pv[k]) = r.sphere_at(offset, &turn, &omega);
+            Some((_, offsets)) => {
+                for (k, offset) in offsets.iter().enumerate() {
+                    (tx[k], tv[k]) = r.sphere_at(offset, &turn, &omega);
                 }
             }
         }
@@ -657,8 +676,7 @@ fn contact_forces(
     spheres: &mut SphereBuffers,
 ) -> ContactTotals {
     let partial = spheres.plan(cstate, rigid, contacts.skin);
-    let (only, sx, sv) = spheres.targets(partial);
-    gather(system, Some(x), Some(v), rigid, only, sx, sv);
+    gather(system, Some(x), Some(v), rigid, spheres.targets(partial));
     let stale = if partial {
         contacts.stale_among(cstate, &spheres.x, spheres.scanned(system))
     } else {
@@ -667,38 +685,42 @@ fn contact_forces(
     if stale {
         if partial {
             // A touched sphere moved the half skin: the rebuild needs every sphere.
-            let (x_all, v_all) = (&mut spheres.x, &mut spheres.v);
-            gather(system, Some(x), Some(v), rigid, None, x_all, v_all);
+            gather(system, Some(x), Some(v), rigid, spheres.targets(false));
         }
         contacts.rebuild(cstate, &spheres.x);
     }
-    let mut totals = contacts.forces(cstate, &spheres.x, &spheres.v, dt, &mut spheres.f);
-    totals.rebuilt = stale;
     spheres.sync(system, contacts, cstate, stale, rigid);
-    let (sx, sf) = (&spheres.x, &spheres.f);
-    for (s, at) in system.spheres.iter().enumerate() {
-        if let SphereAt::Node { node, .. } = at {
-            let fi = &mut f[*node as usize];
+    if partial && !stale {
+        spheres.fill_touched_nodes(contacts.touched());
+    } else {
+        spheres.fill_touched(contacts.touched());
+    }
+    let mut totals = contacts.forces_touched(cstate, &spheres.tx, &spheres.tv, dt);
+    totals.rebuilt = stale;
+    // The touched spheres' forces: the node spheres' first, then each rigid body's run.
+    let (touched, tf) = (contacts.touched(), contacts.touched_forces());
+    let nodes = spheres.touched_nodes();
+    for (&s, force) in touched[..nodes].iter().zip(&tf[..nodes]) {
+        if let SphereAt::Node { node, .. } = system.spheres[s as usize] {
+            let fi = &mut f[node as usize];
             for d in 0..3 {
-                fi[d] += sf[s][d];
+                fi[d] += force[d];
             }
-        } else {
-            break;
         }
     }
-    // Only touched spheres carry a force (the others add zeros). Each body sums its
-    // own, so the bodies may run in parallel with the same bits.
+    // Only touched spheres carry a force. Each body sums its own, so the bodies may
+    // run in parallel with the same bits.
     let active = spheres.active();
+    let (tx, tf) = (&spheres.tx[nodes..], &tf[nodes..]);
     let sum = |(b, body): (usize, &mut RigidState)| {
         let c = body.position;
         let mut force = [0.0; 3];
         let mut torque = [0.0; 3];
-        for &s in active.of(b) {
-            let s = s as usize;
-            let r = [sx[s][0] - c[0], sx[s][1] - c[1], sx[s][2] - c[2]];
-            let t = cross(r, sf[s]);
+        for k in active.ranges[b].clone() {
+            let r = [tx[k][0] - c[0], tx[k][1] - c[1], tx[k][2] - c[2]];
+            let t = cross(r, tf[k]);
             for d in 0..3 {
-                force[d] += sf[s][d];
+                force[d] += tf[k][d];
                 torque[d] += t[d];
             }
         }
