@@ -115,6 +115,9 @@ impl<'a> Placement<'a> {
     }
 }
 
+/// Positions and velocities of some spheres, to fill.
+pub type SphereSlices<'a> = (&'a mut [[f64; 3]], &'a mut [[f64; 3]]);
+
 /// What one gather writes ([`SphereBuffers::targets`]).
 #[derive(Debug)]
 pub struct GatherTargets<'a> {
@@ -126,7 +129,7 @@ pub struct GatherTargets<'a> {
     pub v: &'a mut [[f64; 3]],
     /// A partial step's touched rigid spheres' positions and velocities, in the order
     /// of `only`'s active spheres.
-    pub touched: Option<(&'a mut [[f64; 3]], &'a mut [[f64; 3]])>,
+    pub touched: Option<SphereSlices<'a>>,
 }
 
 impl SphereBuffers {

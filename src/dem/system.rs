@@ -23,7 +23,7 @@ use serde::{Deserialize, Serialize};
 use super::contacts::{ContactState, ContactTotals, Contacts, SphereSet};
 use super::law::cross;
 use super::rigid::{RigidShape, RigidState};
-use super::spheres::{GatherTargets, SphereBuffers};
+use super::spheres::{GatherTargets, SphereBuffers, SphereSlices};
 use crate::qdem::{stability, Boundary, QdemModel, QdemOptions, QdemSolver, State};
 use crate::{Error, Result};
 
@@ -519,9 +519,6 @@ fn state_energy(deformable: Option<&State>, e: &SystemEnergies) -> f64 {
             s.energies.kinetic - s.energies.verlet_correction + s.energies.strain
         })
 }
-
-/// One rigid body's sphere positions and velocities, to fill.
-type SphereSlices<'a> = (&'a mut [[f64; 3]], &'a mut [[f64; 3]]);
 
 /// Sphere positions and velocities from the node arrays and the rigid states: every
 /// node sphere, and of the rigid bodies every sphere, or for a partial step
