@@ -601,3 +601,26 @@ fn bad_track_input_gives_one_line_errors() {
         "no summary for a refused run"
     );
 }
+
+/// A run of a few steps, shorter than writing its first frame, finishes: its stepping
+/// time is taken on its own clock without the frame written before it started (that
+/// made it negative, and converting it panicked).
+#[test]
+fn a_run_shorter_than_its_first_frame_finishes() {
+    let out = tempfile::tempdir().unwrap();
+    let extra = args(&[
+        "--set",
+        "track.settle=\"0.01 ms\"",
+        "--set",
+        "track.duration=\"0.01 ms\"",
+    ]);
+    ok(
+        qdem(out.path(), &extra).output().unwrap(),
+        "ballast-qdem track, a few steps",
+    );
+    let text = std::fs::read_to_string(out.path().join("summary.json")).unwrap();
+    let summary: Value = serde_json::from_str(&text).unwrap();
+    assert!(summary["figures"]["steps"].as_u64().unwrap() > 0, "{text}");
+    let stepping = summary["wall_time_s"]["stepping"].as_f64().unwrap();
+    assert!(stepping >= 0.0, "stepping {stepping} s");
+}

@@ -15,6 +15,7 @@
 //! sides = "walls"          # or "periodic": periodic along x (the track), walls in y
 //! crib_top_m = 0.3         # the crib ballast's surface (optional)
 //! settled = true           # whether the last build phase settled (optional)
+//! capped_phases = ["final settle"] # phases run to their time cap (optional)
 //! contacts = "contacts.csv" # the last step's contact impulses (optional; relative to
 //!                           # the packing file; crate::pack::contacts)
 //!
@@ -137,6 +138,13 @@ pub struct Packing {
     /// ([`Packing::unsettled_note`]).
     #[serde(default)]
     pub settled: Option<bool>,
+    /// The build's phases that ran to their time cap without settling (ballast-pack's
+    /// `summary.json` `capped_phases`); empty when none did, and in older files. A bed
+    /// whose last phase settled after an earlier one was capped is at rest under
+    /// ballast-pack's test, yet it may still creep in a solver with another contact
+    /// law (docs/pack.md, "A third impact bed"): the solvers say so.
+    #[serde(default)]
+    pub capped_phases: Vec<String>,
     /// The contact impulses of the packing's last step (a CSV, relative to the packing
     /// file when read; [`super::contacts`]), from which a restart starts warm.
     #[serde(default)]
@@ -178,6 +186,14 @@ impl Packing {
         if let Some(settled) = self.settled {
             let _ = writeln!(out, "settled = {settled}");
         }
+        if !self.capped_phases.is_empty() {
+            let names: Vec<String> = self
+                .capped_phases
+                .iter()
+                .map(|name| quoted(Path::new(name)))
+                .collect();
+            let _ = writeln!(out, "capped_phases = [{}]", names.join(", "));
+        }
         if let Some(contacts) = &self.contacts {
             let _ = writeln!(out, "contacts = {}", quoted(contacts));
         }
@@ -217,14 +233,24 @@ impl Packing {
     }
 
     /// A one-line note for a solver (`tool`) reading the packing at `path` when the
-    /// packing says it did not settle (`settled = false`); `None` otherwise.
+    /// packing says it did not settle (`settled = false`), or that some phase of its
+    /// build ran to its time cap; `None` otherwise.
     pub fn unsettled_note(&self, tool: &str, path: &Path) -> Option<String> {
-        (self.settled == Some(false)).then(|| {
-            format!(
+        if self.settled == Some(false) {
+            return Some(format!(
                 "{tool}: note: {} was written NOT SETTLED (its last build phase stopped \
                  at its time cap; its summary.json gives the phases and the deepest \
                  overlap): the bed does not start at rest",
                 path.display()
+            ));
+        }
+        (!self.capped_phases.is_empty()).then(|| {
+            format!(
+                "{tool}: note: {} was built with phases run to their time cap ({}); its \
+                 last phase settled, but such a bed may still creep (docs/pack.md, \
+                 \"A third impact bed\")",
+                path.display(),
+                self.capped_phases.join(", ")
             )
         })
     }
@@ -338,6 +364,7 @@ mod tests {
             sides: "walls".into(),
             crib_top_m: Some(0.25),
             settled: Some(false),
+            capped_phases: vec!["final settle".into()],
             contacts: Some("contacts.csv".into()),
             meshes: vec![
                 PackedMesh {
@@ -381,6 +408,15 @@ mod tests {
         let mut packing = sample();
         let note = packing.unsettled_note("tool", Path::new("beds/p.toml"));
         assert!(note.is_some_and(|n| n.starts_with("tool: note: beds/p.toml")));
+        // Settled at the end, but an earlier phase capped: a note naming the phase.
+        packing.settled = Some(true);
+        let note = packing.unsettled_note("tool", Path::new("p.toml"));
+        assert!(
+            note.as_ref()
+                .is_some_and(|n| n.starts_with("tool: note: p.toml") && n.contains("final settle")),
+            "{note:?}"
+        );
+        packing.capped_phases.clear();
         for settled in [Some(true), None] {
             packing.settled = settled;
             assert_eq!(packing.unsettled_note("tool", Path::new("p.toml")), None);

@@ -628,6 +628,7 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
     )?;
     packing.crib_top_m = Some(crib_top);
     packing.settled = Some(settled);
+    packing.capped_phases = bed.capped_phases().into_iter().map(String::from).collect();
     // The last step's impulses at the final configuration, for a warm restart.
     let contacts = packed_contacts(&final_contacts, bed.last_contacts(), &body_refs(&bed.roles));
     write_atomic(
@@ -730,7 +731,7 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
              settling: {}{}",
             capped.join(", "),
             if settled {
-                " (the last phase settled: the bed is at rest)"
+                " (the last phase settled: the bed is at rest by its test, but may still creep)"
             } else {
                 ""
             }
@@ -904,6 +905,7 @@ fn packing_of(
         sides: scene.bed.sides.clone(),
         crib_top_m: None,
         settled: None,
+        capped_phases: Vec::new(),
         contacts: None,
         meshes,
         stones,
