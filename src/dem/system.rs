@@ -572,8 +572,8 @@ fn gather(
             .for_each(node);
     }
     // One task per rigid body: its rotation and angular velocity once, then its spheres
-    // (all, or its touched ones: `k` counts from the body's first sphere).
-    // Each body's run of the touched rigid spheres' buffers (a partial step's).
+    // (all, into the whole set's buffers; or, in a partial step, its touched ones, into
+    // its run of the touched spheres' buffers).
     let (mut tx_rigid, mut tv_rigid): (&mut [[f64; 3]], &mut [[f64; 3]]) = match touched {
         Some((tx, tv)) => (tx, tv),
         None => (&mut [], &mut []),
