@@ -60,7 +60,9 @@ impl SphereSet {
 
     /// The constants of a pair ([`PairConstants`]), each computed in one fixed order of
     /// operations, so the force loop's bits do not depend on when they were gathered.
-    fn constants(&self, p: &PairState) -> PairConstants {
+    /// A pair's constants; `rank` gives each touched sphere's place in the touched
+    /// list ([`PairConstants::a`]).
+    fn constants(&self, p: &PairState, rank: &[u32]) -> PairConstants {
         let i = p.first as usize;
         if p.second & PLANE != 0 {
             let plane = &self.planes[(p.second & !PLANE) as usize];
@@ -68,7 +70,7 @@ impl SphereSet {
                 reach: self.radius[i],
                 m_eff: self.mass[i],
                 law: self.law_index(plane.material, self.material[i]),
-                a: 0,
+                a: rank[i],
                 b: 0,
             }
         } else {
@@ -78,8 +80,8 @@ impl SphereSet {
                 reach: self.radius[i] + self.radius[j],
                 m_eff: mi * mj / (mi + mj),
                 law: self.law_index(self.material[i], self.material[j]),
-                a: 0,
-                b: 0,
+                a: rank[i],
+                b: rank[j],
             }
         }
     }
@@ -426,18 +428,7 @@ impl Contacts {
             }
         }
         gather.truncate(offsets[offsets.len() - 1] as usize);
-        self.constants = pairs
-            .iter()
-            .map(|p| PairConstants {
-                a: rank[p.first as usize],
-                b: if p.second & PLANE != 0 {
-                    0
-                } else {
-                    rank[p.second as usize]
-                },
-                ..self.set.constants(p)
-            })
-            .collect();
+        self.constants = pairs.iter().map(|p| self.set.constants(p, &rank)).collect();
         self.pair_forces = vec![[0.0; 3]; pairs.len()];
         self.touched_forces = vec![[0.0; 3]; self.touched.len()];
         self.clear_forces = true;

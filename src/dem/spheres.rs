@@ -217,19 +217,16 @@ impl SphereBuffers {
         }
     }
 
-    /// After a gather of every sphere: the touched spheres' entries of [`Self::tx`]
-    /// and [`Self::tv`] copied from the whole set's buffers.
-    pub fn fill_touched(&mut self, touched: &[u32]) {
-        for ((t, u), &s) in self.tx.iter_mut().zip(self.tv.iter_mut()).zip(touched) {
-            *t = self.x[s as usize];
-            *u = self.v[s as usize];
-        }
-    }
-
-    /// After a partial step's gather: the touched node spheres' entries copied from
-    /// the whole set's buffers (the rigid ones are written by the gather).
-    pub fn fill_touched_nodes(&mut self, touched: &[u32]) {
-        let n = self.touched_nodes;
+    /// The touched spheres' entries of [`Self::tx`] and [`Self::tv`] copied from the
+    /// whole set's buffers: all of them after a gather of every sphere, the node
+    /// spheres' only after a partial step's (`rigid_written`: the gather wrote the
+    /// rigid ones there itself).
+    pub fn fill_touched(&mut self, touched: &[u32], rigid_written: bool) {
+        let n = if rigid_written {
+            self.touched_nodes
+        } else {
+            touched.len()
+        };
         for ((t, u), &s) in self.tx[..n].iter_mut().zip(&mut self.tv[..n]).zip(touched) {
             *t = self.x[s as usize];
             *u = self.v[s as usize];

@@ -687,11 +687,7 @@ fn contact_forces(
         contacts.rebuild(cstate, &spheres.x);
     }
     spheres.sync(system, contacts, cstate, stale, rigid);
-    if partial && !stale {
-        spheres.fill_touched_nodes(contacts.touched());
-    } else {
-        spheres.fill_touched(contacts.touched());
-    }
+    spheres.fill_touched(contacts.touched(), partial && !stale);
     let mut totals = contacts.forces_touched(cstate, &spheres.tx, &spheres.tv, dt);
     totals.rebuilt = stale;
     // The touched spheres' forces: the node spheres' first, then each rigid body's run.

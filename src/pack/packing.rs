@@ -166,7 +166,11 @@ fn numbers(values: &[f64]) -> String {
 }
 
 fn quoted(path: &Path) -> String {
-    let text = path.to_string_lossy();
+    quoted_text(&path.to_string_lossy())
+}
+
+/// A TOML basic string.
+fn quoted_text(text: &str) -> String {
     format!("\"{}\"", text.replace('\\', "\\\\").replace('"', "\\\""))
 }
 
@@ -190,7 +194,7 @@ impl Packing {
             let names: Vec<String> = self
                 .capped_phases
                 .iter()
-                .map(|name| quoted(Path::new(name)))
+                .map(|name| quoted_text(name))
                 .collect();
             let _ = writeln!(out, "capped_phases = [{}]", names.join(", "));
         }
