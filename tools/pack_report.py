@@ -8,9 +8,11 @@ deposit.csv).
                                      on): steps, steps on the sweep cap, steps whose
                                      energy rise (ΔKE − work of gravity) is positive and
                                      their sum, and the last step's kinetic energy,
-                                     fastest body point and deepest overlap: what a phase
-                                     that did not settle was doing (docs/pack.md, "Final
-                                     settle: the capped solve feeds the bed")
+                                     fastest body point and deepest overlap, and its
+                                     strongest contact (over the bed's weight when the
+                                     summary gives it; above 1, a self-stress): what a
+                                     phase that did not settle was doing (docs/pack.md,
+                                     "Final settle: the capped solve feeds the bed")
 """
 
 import csv
@@ -120,10 +122,14 @@ def settle(directory, start=0.0):
     rows = [r for r in rows if r["time_s"] > start]
     # deposit.csv numbers its phases in the order they first step (a stage's part after
     # a strike-off is a phase of its own there), so they are named by time span.
-    print(f"{directory}: deposit.csv from t = {start} s")
+    # The bed's weight (stones and sleepers, true): summaries since 2026-12-07.
+    weight = summary["figures"].get("bed_weight_N")
+    print(f"{directory}: deposit.csv from t = {start} s"
+          + (f"; bed weight {1e-3 * weight:.2f} kN" if weight else ""))
     print("| csv phase | t (s) | steps | on the sweep cap | energy rise > 0 (steps, sum mJ) "
-          "| last KE (mJ) | last fastest point (mm/s) | last deepest overlap (µm) |")
-    print("|---:|---|---:|---:|---:|---:|---:|---:|")
+          "| last KE (mJ) | last fastest point (mm/s) | last deepest overlap (µm) "
+          "| strongest contact (kN" + (", / bed weight)" if weight else ")") + " |")
+    print("|---:|---|---:|---:|---:|---:|---:|---:|---:|")
     for index in sorted({int(r["phase"]) for r in rows}):
         mine = [r for r in rows if int(r["phase"]) == index]
         most = max(r["nlgs_sweeps"] for r in mine)
@@ -136,9 +142,15 @@ def settle(directory, start=0.0):
             fastest = f"{1e3 * last['fastest_point_m_s']:.1f}"
         else:
             rise, fastest = "—", "—"
+        # Since 2026-12-04.
+        if "max_contact_force_N" in last:
+            force = max(r["max_contact_force_N"] for r in mine)
+            strongest = f"{1e-3 * force:.3g}" + (f" / {force / weight:.2f}" if weight else "")
+        else:
+            strongest = "—"
         print(f"| {index} | {mine[0]['time_s']:.3f}–{last['time_s']:.3f} | {len(mine)} | "
               f"{on_cap} (most {most:.0f}) | {rise} | {1e3 * last['kinetic_energy_J']:.3g} | "
-              f"{fastest} | {1e6 * last['max_interpenetration_m']:.1f} |")
+              f"{fastest} | {1e6 * last['max_interpenetration_m']:.1f} | {strongest} |")
 
 
 def main(argv):

@@ -19,8 +19,8 @@ pub struct PackCli {
     run: RunArgs,
     /// Continue a killed run from the checkpoint in its output directory DIR (give the
     /// killed run's scene, --preset and --set again; implies --out DIR). Only
-    /// deposit.max_phase_time, deposit.finish_sweeps, output.checkpoint_every and
-    /// output.checkpoint_wall_every may differ.
+    /// deposit.max_phase_time, deposit.finish_sweeps, deposit.held_warm_start,
+    /// output.checkpoint_every and output.checkpoint_wall_every may differ.
     #[arg(long, value_name = "DIR")]
     resume: Option<PathBuf>,
 }

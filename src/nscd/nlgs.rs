@@ -83,7 +83,7 @@ impl Default for NlgsOptions {
 }
 
 /// What an NLGS run did.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct NlgsReport {
     /// Sweeps made.
     pub iterations: usize,

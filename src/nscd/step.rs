@@ -132,7 +132,7 @@ impl SolvedContact {
 }
 
 /// What one step did.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct StepReport {
     /// Contact points in the problem.
     pub contacts: usize,

@@ -114,6 +114,11 @@ impl Progress {
         }
     }
 
+    /// Writes `line` to stdout above the bar (a note the run's log keeps).
+    pub fn note(&self, line: &str) {
+        self.bar.suspend(|| println!("{line}"));
+    }
+
     /// Leaves the bar as it stands (the run stopped on an error).
     pub fn abandon(&self) {
         self.bar.abandon();

@@ -299,6 +299,10 @@ pub struct StepRecord<'a> {
     pub phase: &'a str,
     /// Stones in the bed.
     pub stones: usize,
+    /// Whether the step ran under the finishing rules ([`Deposition::finish`]: no
+    /// drag, the bed on its way to rest), where no contact should carry more than the
+    /// bed's weight.
+    pub finishing: bool,
     /// The engine's report.
     pub report: &'a StepReport,
 }
@@ -572,6 +576,7 @@ impl Deposition {
             time: self.time,
             phase,
             stones: self.stone_count(),
+            finishing: self.finishing && !self.vibrating,
             report: &report,
         };
         observe.step(&record, &self.bodies, &self.roles);

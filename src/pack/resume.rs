@@ -122,11 +122,14 @@ impl PackCheckpoint {
 /// with a shorter `deposit.max_phase_time` (it ends at that time, reported as not
 /// settled), or with a higher `deposit.finish_sweeps`, so that its solves reach the
 /// tolerance instead of stopping on the cap (docs/pack.md, "Final settle: the capped
-/// solve feeds the bed"). (Changing them makes the resumed run differ from an
-/// uninterrupted one with the old values.)
-pub const RUN_CONTROL_KEYS: [(&str, &str); 4] = [
+/// solve feeds the bed"), or with a lower `deposit.held_warm_start` when its final
+/// settle feeds a self-stress (the strongest contact climbing by orders of magnitude;
+/// docs/pack.md, "A third impact bed"). (Changing them makes the resumed run differ
+/// from an uninterrupted one with the old values.)
+pub const RUN_CONTROL_KEYS: [(&str, &str); 5] = [
     ("deposit", "max_phase_time"),
     ("deposit", "finish_sweeps"),
+    ("deposit", "held_warm_start"),
     ("output", "checkpoint_every"),
     ("output", "checkpoint_wall_every"),
 ];

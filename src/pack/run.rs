@@ -25,7 +25,7 @@ use super::contacts::{contacts_csv, packed_contacts, BodyRef, CONTACTS_FILE};
 use super::deposit::{bounds, DepositSetup, Deposition, Observer, Role, SleeperModel};
 use super::packing::{PackedMesh, Packing, Placement, PACKING_FORMAT};
 use super::profile::Profile;
-use super::recorder::{CheckpointPlan, Recorder};
+use super::recorder::{CheckpointPlan, Recorder, WeightWatch};
 use super::report::{
     compactness, control_boxes, coordination_numbers, interpenetration, median, stone_bodies,
     stones_outside, BoxProfile, Compactness, PROFILE_SLICE_OVER_D50,
@@ -444,6 +444,13 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
         );
     }
 
+    let watch = WeightWatch {
+        sleepers_n: scene.sleepers.as_ref().map_or(0, |s| s.count) as f64
+            * sleeper.as_ref().map_or(0.0, |s| s.model.mass())
+            * bed.setup.params.gravity.norm(),
+        gravity: bed.setup.params.gravity.norm(),
+        held_warm_start: d.held_warm_start,
+    };
     let mut recorder = Recorder::open(
         &ctx.out_dir,
         scene.output.frame_interval.si(),
@@ -455,6 +462,7 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
             ),
             scene: scene_text,
         },
+        watch,
         resumed.as_ref(),
     )?;
     if let Some(c) = &resumed {
@@ -696,6 +704,7 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
         .figure("bed_top_m", top)
         .figure("floor_offset_m", bed.floor_offset())
         .figure("sleeper_inertia_scale", bed.setup.sleeper_inertia_scale)
+        .figure("bed_weight_N", watch.bed_weight(&bed.bodies, &bed.roles))
         .figure("settled", settled)
         .figure("capped_phases", capped.clone())
         .figure("phases", phases)
