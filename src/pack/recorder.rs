@@ -49,8 +49,8 @@ pub struct CheckpointPlan {
 /// What tells a self-stress from the bed's own load: on its way to rest a bed's
 /// contact carries about the weight of what lies on it (wedging and arching multiply it
 /// by a few at most), so one that carries more than the whole bed's weight holds a
-/// self-stress, which a fully warm-started solve can feed
-/// until the bed creeps or is thrown up (docs/nscd.md, "Warm start and self-stress";
+/// self-stress, which a fully warm-started solve can feed until the bed creeps or is
+/// thrown up (docs/nscd.md, "Warm start and self-stress";
 /// docs/pack.md, "A third impact bed").
 #[derive(Debug, Clone, Copy)]
 pub struct WeightWatch {
@@ -75,8 +75,8 @@ impl WeightWatch {
     }
 
     /// The note for a finishing step whose strongest contact carries more than the
-    /// bed's weight (`None` for any other step); with held sleepers it names the key
-    /// that lets such a self-stress decay.
+    /// bed's weight (`None` for any other step); with held sleepers it names the two
+    /// keys that bear on it (`deposit.hold_sleepers`, `deposit.held_warm_start`).
     pub fn note(&self, record: &StepRecord, bodies: &[Body], roles: &[Role]) -> Option<String> {
         let force = record.report.max_contact_force;
         // The sleepers' weight first: the bed's sum is only taken for a strong contact.
@@ -95,9 +95,10 @@ impl WeightWatch {
             format!(
                 " Held sleepers bound such columns (the release, when on, settles the \
                  bed again without them); a bed built with deposit.hold_sleepers = false \
-                 (free sleepers carrying 1/k of their weight) has none (docs/pack.md, \"Held sleepers: the quick beds\"); resumed from a \
-                 checkpoint before this with a lower deposit.held_warm_start (now {}), the \
-                 stress stays bounded but the phase may still not settle.",
+                 (free sleepers carrying 1/k of their weight) has none (docs/pack.md, \
+                 \"Held sleepers: the quick beds\"); resumed from a checkpoint before this \
+                 with a lower deposit.held_warm_start (now {}), the stress stays bounded \
+                 but the phase may still not settle.",
                 self.held_warm_start
             )
         } else {
