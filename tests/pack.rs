@@ -1872,7 +1872,8 @@ fn a_frame_that_cannot_be_written_stops_the_run_at_once() {
 }
 
 /// A resumed run may shorten `deposit.max_phase_time` (a run-control key, like
-/// `deposit.finish_sweeps` and `output.checkpoint_every`, which it changes too): every
+/// `deposit.finish_sweeps`, `deposit.held_warm_start` and `output.checkpoint_every`,
+/// which it changes too): every
 /// phase from the checkpoint on ends by the new cap, those cut reported as capped, and
 /// the bed is written. Other keys stay refused.
 #[test]
@@ -1905,6 +1906,7 @@ fn a_resumed_run_may_shorten_the_phase_cap() {
     let resumed = pack(&resume)
         .args(["--set", &format!("deposit.max_phase_time=\"{cap} s\"")])
         .args(["--set", "deposit.finish_sweeps=800"])
+        .args(["--set", "deposit.held_warm_start=0.95"])
         .output()
         .unwrap();
     assert_success(&resumed);
