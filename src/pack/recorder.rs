@@ -345,7 +345,7 @@ mod tests {
     /// force, the weight and, the sleepers being held, the warm-start key; not for a
     /// contact just under the weight, nor for any contact while the bed is raining.
     #[test]
-    fn a_contact_stronger_than_the_bed_is_noted_once_finishing() {
+    fn a_contact_stronger_than_the_bed_is_noted_while_finishing() {
         let (bodies, roles, watch) = bed();
         let weight = 2.7 * 9.81 + 2400.0 * 0.008 * 9.81;
         assert!((watch.bed_weight(&bodies, &roles) - weight).abs() < 1e-9);
