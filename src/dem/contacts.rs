@@ -413,7 +413,7 @@ impl Contacts {
             }
         }
         let mut fill = offsets.clone();
-        let mut gather = vec![(0u32, 0.0); pairs.len() * 2];
+        let mut gather = vec![(0u32, 0.0); offsets[offsets.len() - 1] as usize];
         for (k, p) in pairs.iter().enumerate() {
             // The law gives the force on the second member; a plane pair's sphere is
             // its first member but plays the second (the normal points to it).
@@ -427,7 +427,6 @@ impl Contacts {
                 *f += 1;
             }
         }
-        gather.truncate(offsets[offsets.len() - 1] as usize);
         self.constants = pairs.iter().map(|p| self.set.constants(p, &rank)).collect();
         self.pair_forces = vec![[0.0; 3]; pairs.len()];
         self.touched_forces = vec![[0.0; 3]; self.touched.len()];
@@ -488,16 +487,11 @@ impl Contacts {
         dt: f64,
         forces: &mut [[f64; 3]],
     ) -> ContactTotals {
-        let x: Vec<[f64; 3]> = self
+        let (x, v): (Vec<[f64; 3]>, Vec<[f64; 3]>) = self
             .touched
             .iter()
-            .map(|&s| positions[s as usize])
-            .collect();
-        let v: Vec<[f64; 3]> = self
-            .touched
-            .iter()
-            .map(|&s| velocities[s as usize])
-            .collect();
+            .map(|&s| (positions[s as usize], velocities[s as usize]))
+            .unzip();
         let totals = self.forces_touched(state, &x, &v, dt);
         if std::mem::take(&mut self.clear_forces) {
             forces.fill([0.0; 3]);
@@ -526,15 +520,10 @@ impl Contacts {
             state.pairs.len(),
             "contact list not indexed: refresh or restore it first"
         );
-        assert_eq!(
-            x.len(),
-            self.touched.len(),
-            "one position per touched sphere"
-        );
-        assert_eq!(
-            v.len(),
-            self.touched.len(),
-            "one velocity per touched sphere"
+        let n = self.touched.len();
+        assert!(
+            x.len() == n && v.len() == n,
+            "one position and one velocity per touched sphere"
         );
         let set = &self.set;
         let period = set.period.as_ref();

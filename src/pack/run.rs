@@ -444,11 +444,12 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
         );
     }
 
+    let gravity = bed.setup.params.gravity.norm();
     let watch = WeightWatch {
         sleepers_n: scene.sleepers.as_ref().map_or(0, |s| s.count) as f64
             * sleeper.as_ref().map_or(0.0, |s| s.model.mass())
-            * bed.setup.params.gravity.norm(),
-        gravity: bed.setup.params.gravity.norm(),
+            * gravity,
+        gravity,
         held_warm_start: d.held_warm_start,
     };
     let mut recorder = Recorder::open(

@@ -204,8 +204,11 @@ pub fn run(ctx: &RunContext, force: bool, resume: bool) -> Result<()> {
         }
     };
     let started = Instant::now();
-    // The frames written before `started` (the first one) are not in its clock.
+    // Stepping time since `started`: its clock less the frames written since (those
+    // written before it, the first one, are not in that clock).
     let frames_at_start = out.frame_s;
+    let stepping_since =
+        |frame_s: f64| started.elapsed().as_secs_f64() - (frame_s - frames_at_start);
     let mut cadence = Cadence::new(t.checkpoint_every, t.checkpoint_wall_every);
     let (first_step, touching_before) = (state.step, figures.touching_sum);
     let mut bar = Progress::steps(total_steps, "ballast-qdem: track");
@@ -247,7 +250,7 @@ pub fn run(ctx: &RunContext, force: bool, resume: bool) -> Result<()> {
             )?;
             cadence.written();
             out.frame_s += clock.elapsed().as_secs_f64();
-            let stepping = started.elapsed().as_secs_f64() - (out.frame_s - frames_at_start);
+            let stepping = stepping_since(out.frame_s);
             before
                 .then(state.step, stepping, out.frame_s, &timer)
                 .write(&ctx.out_dir)?;
@@ -258,7 +261,7 @@ pub fn run(ctx: &RunContext, force: bool, resume: bool) -> Result<()> {
         }
     }
     bar.finish_and_clear();
-    let stepping = started.elapsed().as_secs_f64() - (out.frame_s - frames_at_start);
+    let stepping = stepping_since(out.frame_s);
     let run_stepping = before.stepping_s + stepping;
     timer.add("stepping", std::time::Duration::from_secs_f64(run_stepping));
     timer.add(
