@@ -31,7 +31,9 @@
 //! # Settling
 //! A phase ends when the rms speed of the dynamic bodies, √(2 KE / Σm), is below the
 //! scene's `settle_speed` and no body point moves faster than four times that, or
-//! after `max_phase_time` (then reported as capped). The bed is settled when its last
+//! after `max_phase_time` (then reported as capped). A finishing phase (compaction,
+//! final settle, release) must also have met its speed and overlap tests on every
+//! step of the last 0.1 s (at 5 mm/s; [`UNBALANCE_G`]). The bed is settled when its last
 //! phase settled ([`Deposition::at_rest`]).
 //!
 //! # Stages and resuming
@@ -80,16 +82,18 @@ pub const PLACEMENT_DRAWS: usize = 200;
 pub const MAX_SPEED_FACTOR: f64 = 4.0;
 
 /// The smallest unbalanced acceleration (in g) a finishing phase's settle test must be
-/// able to see: such a phase settles no sooner than the time a body starting from rest
-/// takes at `UNBALANCE_G` × g to pass [`MAX_SPEED_FACTOR`] × `settle_speed` (0.1 s at
-/// 5 mm/s). What begins a phase (sleepers held or released, the floor stopped) may
+/// able to see: such a phase settles only once its speed tests have held on every step
+/// for the time a body starting from rest takes at `UNBALANCE_G` × g to pass
+/// [`MAX_SPEED_FACTOR`] × `settle_speed` (0.1 s at 5 mm/s). What begins a phase (sleepers held or released, the floor stopped) may
 /// leave a body unbalanced, and on its first steps that body is still slow. The quick
 /// bed with its layer compacted passed its release on the first step, and when
 /// `ballast-nscd` restarted the bed a stone on the floor by the end wall slid 0.59 mm
 /// in 10 steps; held for 20 ms (0.1 g) the release passed at 19 steps with that stone
 /// still sliding (0.57 mm); held for 0.1 s it ran 52 steps, the stone slid and
 /// stopped within them, and the restart moved no point more than 0.14 mm
-/// (docs/pack.md, "Settled: not on a phase's first steps").
+/// (docs/pack.md, "Settled: not on a phase's first steps"). The watch was first
+/// counted from the phase's start only; a stone tipping off a ridge later in the phase
+/// then passed (docs/pack.md, "Settled: quiet for a whole watch").
 pub const UNBALANCE_G: f64 = 0.02;
 
 /// The largest speed of any point of a dynamic body ([`Body::point_speed_bound`]; m/s,
@@ -343,6 +347,23 @@ pub struct Cursor {
     pub start_step: u64,
     /// The stage's report so far.
     pub report: Option<PhaseReport>,
+    /// The step after which every step so far has met the speed and overlap rules of
+    /// [`Deposition::settled`] (`None`: the last step did not).
+    pub quiet_since: Option<u64>,
+}
+
+impl Cursor {
+    /// Records whether step `steps` (the count after it) was quiet, and returns how many
+    /// steps of the current part, up to this one, have been quiet in a row (0 after a
+    /// step that was not).
+    pub fn quiet_run(&mut self, quiet: bool, steps: u64) -> u64 {
+        if !quiet {
+            self.quiet_since = None;
+            return 0;
+        }
+        let since = *self.quiet_since.get_or_insert(steps - 1);
+        steps - since.max(self.start_step)
+    }
 }
 
 /// The deposition in progress: bodies, their roles, the engine and the clock.
@@ -609,18 +630,22 @@ impl Deposition {
     /// times it (a lone stone still sliding down a sleeper's side hides in the rms of
     /// hundreds at rest; the intermediate phases only need a quiet heap) and no overlap
     /// deeper than `max_overlap` (one still being pushed out moves a stone slowly
-    /// enough to pass the speed tests), and not before the phase has run long enough
-    /// for an unbalanced body to show ([`UNBALANCE_G`]).
-    fn settled(&self, report: &StepReport) -> bool {
+    /// enough to pass the speed tests), on every step of the last
+    /// [`Self::settle_watch`] of the phase: a body left unbalanced, by what began the
+    /// phase or by a stone tipping off a ridge later in it, passes the speed limit
+    /// within that time at [`UNBALANCE_G`] × g (docs/pack.md, "Settled: quiet for a
+    /// whole watch").
+    fn settled(&mut self, report: &StepReport) -> bool {
         let limit = self.setup.settle_speed;
-        self.rms_speed(report.kinetic_energy) < limit
+        let quiet = self.rms_speed(report.kinetic_energy) < limit
             && (!self.finishing
-                || (self.part_span().0 >= self.settle_watch()
-                    && report.max_interpenetration < self.setup.max_overlap
-                    && fastest_point_speed(&self.bodies) < MAX_SPEED_FACTOR * limit))
+                || (report.max_interpenetration < self.setup.max_overlap
+                    && fastest_point_speed(&self.bodies) < MAX_SPEED_FACTOR * limit));
+        let run = self.cursor.quiet_run(quiet, self.steps);
+        quiet && (!self.finishing || run as f64 * self.setup.params.dt >= self.settle_watch())
     }
 
-    /// The time a finishing phase runs at least before it may settle (s):
+    /// The time over which a finishing phase's settle test must hold on every step (s):
     /// [`MAX_SPEED_FACTOR`] × `settle_speed` over [`UNBALANCE_G`] × g.
     fn settle_watch(&self) -> f64 {
         MAX_SPEED_FACTOR * self.setup.settle_speed
@@ -877,6 +902,7 @@ impl Deposition {
             part: 0,
             start_step: self.steps,
             report: None,
+            quiet_since: None,
         };
     }
 
@@ -1198,5 +1224,39 @@ impl Deposition {
                 _ => None,
             })
             .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Cursor;
+
+    #[test]
+    fn a_quiet_run_restarts_after_a_loud_step_and_at_the_part_start() {
+        // A part began after step 10; steps 11-13 quiet, 14 not, 15-16 quiet.
+        let mut c = Cursor {
+            start_step: 10,
+            ..Cursor::default()
+        };
+        let runs: Vec<u64> = [
+            (true, 11),
+            (true, 12),
+            (true, 13),
+            (false, 14),
+            (true, 15),
+            (true, 16),
+        ]
+        .iter()
+        .map(|&(quiet, step)| c.quiet_run(quiet, step))
+        .collect();
+        assert_eq!(runs, [1, 2, 3, 0, 1, 2]);
+        // Quiet since step 15, but a new part begins after step 16: its first quiet
+        // step counts one, not three.
+        c.start_step = 16;
+        assert_eq!(c.quiet_run(true, 17), 1);
+        // Restored from a checkpoint, the cursor carries the run on.
+        let bytes = bincode::serialize(&c).unwrap();
+        let mut restored: Cursor = bincode::deserialize(&bytes).unwrap();
+        assert_eq!(restored.quiet_run(true, 18), 2);
     }
 }

@@ -25,7 +25,7 @@ use crate::nscd::checkpoint::BodyState;
 use crate::{Error, Result};
 
 /// The format tag.
-pub const PACK_CHECKPOINT_FORMAT: &str = "ballast-pack checkpoint 3";
+pub const PACK_CHECKPOINT_FORMAT: &str = "ballast-pack checkpoint 4";
 
 /// One body of the bed.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -274,11 +274,7 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
     let round = scene.stones.round.map_or(0.0, |r| r.si());
     let spheres = scene.stones.spheres.map_or(0.0, |d| d.si());
     if round > 0.0 {
-        println!(
-            "ballast-pack: stones.round is experimental; the sleepers settle free for the \
-             final settle unless deposit.hold_sleepers = true (docs/pack.md, \
-             \"Rounded stones\")"
-        );
+        println!("ballast-pack: stones.round is experimental (docs/pack.md, \"Rounded stones\")");
     }
     let family: Vec<StoneShape> = timer
         .time("read stones", || {
@@ -396,7 +392,7 @@ pub fn run(ctx: &RunContext, resume: bool) -> Result<()> {
         ddm,
         profile,
         sleeper_inertia_scale,
-        hold_sleepers: d.hold_sleepers.unwrap_or(round == 0.0),
+        hold_sleepers: d.hold_sleepers,
         release_sleepers: d.release_sleepers,
     };
     let placed: Vec<(SleeperModel, [f64; 2])> = match &sleeper {

@@ -49,9 +49,9 @@
 //! drag_time = "0.1 s"                   # optional drag while raining (terminal 1 m/s)
 //! sleeper_mass_ratio = 100              # a sleeper's inertia at most this × the mean
 //!                                       # stone's mass while packing, its weight kept
-//! hold_sleepers = true                  # held where they rest for the final settle
-//!                                       # (default; false with stones.round: free,
-//!                                       # carrying 1/k of their weight)
+//! hold_sleepers = false                 # free for the final settle, carrying 1/k of
+//!                                       # their weight (default; true: held where
+//!                                       # they rest)
 //! release_sleepers = true               # then freed (carrying 1/k) and settled again
 //! ddm = { driver = "synchronous" }      # DDM of the solve (crate::scene::DdmSpec;
 //!                                       # default: one slab per sleeper)
@@ -267,11 +267,14 @@ pub struct DepositSpec {
     pub sleeper_mass_ratio: f64,
     /// The sleepers are held where they rest, as their rails hold them, for the final
     /// settle (docs/pack.md, "Heavy sleepers"); when not, they settle free with their
-    /// scaled weight. Default: held for bare stones, free for rounded ones
-    /// (`stones.round`), which jam against a held sleeper (docs/pack.md, "Rounded
-    /// stones").
+    /// scaled weight. Default: free. Held, stone columns between a sleeper and the
+    /// floor carry a self-stress that the warm start grows, up to 1.7 × the bed's
+    /// weight on one contact of the `impact` bed and 286 × on the periodic quick one,
+    /// and a freed sleeper turns it into motion (docs/pack.md, "Held sleepers: the
+    /// quick beds"); rounded stones jam against a held sleeper too (docs/pack.md,
+    /// "Rounded stones").
     #[serde(default)]
-    pub hold_sleepers: Option<bool>,
+    pub hold_sleepers: bool,
     /// After the final settle, held sleepers are freed and the bed settles again with
     /// them free, carrying their scaled weight (default true): the packing then ends
     /// at rest as the solvers restart it, with free sleepers (docs/pack.md, "Warm
