@@ -391,8 +391,9 @@ const TRACK_COLUMNS: [&str; 12] = [
     "balance_error_j",
 ];
 
-/// The format tag of a track checkpoint.
-const CHECKPOINT_FORMAT: &str = "ballast-qdem track checkpoint 2";
+/// The format tag of a track checkpoint (3: the meshes' nodes in locality order, so a
+/// checkpoint of an earlier build would restore its states onto other nodes).
+const CHECKPOINT_FORMAT: &str = "ballast-qdem track checkpoint 3";
 
 /// Keys of the merged scene a resumed run may change: how often it checkpoints, not
 /// what it computes ([`crate::output::read_checkpoint_allowing`]).
