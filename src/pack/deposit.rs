@@ -84,16 +84,17 @@ pub const MAX_SPEED_FACTOR: f64 = 4.0;
 /// The smallest unbalanced acceleration (in g) a finishing phase's settle test must be
 /// able to see: such a phase settles only once its speed tests have held on every step
 /// for the time a body starting from rest takes at `UNBALANCE_G` × g to pass
-/// [`MAX_SPEED_FACTOR`] × `settle_speed` (0.1 s at 5 mm/s). What begins a phase (sleepers held or released, the floor stopped) may
-/// leave a body unbalanced, and on its first steps that body is still slow. The quick
-/// bed with its layer compacted passed its release on the first step, and when
-/// `ballast-nscd` restarted the bed a stone on the floor by the end wall slid 0.59 mm
-/// in 10 steps; held for 20 ms (0.1 g) the release passed at 19 steps with that stone
-/// still sliding (0.57 mm); held for 0.1 s it ran 52 steps, the stone slid and
-/// stopped within them, and the restart moved no point more than 0.14 mm
-/// (docs/pack.md, "Settled: not on a phase's first steps"). The watch was first
-/// counted from the phase's start only; a stone tipping off a ridge later in the phase
-/// then passed (docs/pack.md, "Settled: quiet for a whole watch").
+/// [`MAX_SPEED_FACTOR`] × `settle_speed` (0.1 s at 5 mm/s). What begins a phase
+/// (sleepers held or released, the floor stopped) may leave a body unbalanced, and on
+/// its first steps that body is still slow. The quick bed with its layer compacted
+/// passed its release on the first step, and when `ballast-nscd` restarted the bed a
+/// stone on the floor by the end wall slid 0.59 mm in 10 steps; held for 20 ms (0.1 g)
+/// the release passed at 19 steps with that stone still sliding (0.57 mm); held for
+/// 0.1 s it ran 52 steps, the stone slid and stopped within them, and the restart moved
+/// no point more than 0.14 mm (docs/pack.md, "Settled: not on a phase's first steps").
+/// The watch was first counted from the phase's start only; a stone tipping off a
+/// ridge later in the phase then passed (docs/pack.md, "Settled: quiet for a whole
+/// watch").
 pub const UNBALANCE_G: f64 = 0.02;
 
 /// The largest speed of any point of a dynamic body ([`Body::point_speed_bound`]; m/s,
