@@ -32,7 +32,8 @@ use std::ops::Range;
 
 use super::contacts::{ContactState, Contacts};
 use super::rigid::RigidState;
-use super::system::{MultiBody, SphereAt};
+use super::system::{MultiBody, SphereAt, PARALLEL_MIN_BODIES};
+use rayon::prelude::*;
 
 /// A step updates only the touched spheres while every rigid body's bound stays below
 /// this fraction of the skin. The list goes stale at half the skin; the margin keeps
@@ -182,10 +183,27 @@ impl SphereBuffers {
             return false;
         }
         let limit = PARTIAL_SKIN_FRACTION * skin;
-        for (((whole, r), (c, q)), &reach) in
-            self.whole.iter_mut().zip(rigid).zip(poses).zip(&self.reach)
-        {
+        type Item<'a> = (
+            ((&'a mut bool, &'a RigidState), &'a ([f64; 3], [f64; 4])),
+            &'a f64,
+        );
+        let mark = |(((whole, r), (c, q)), &reach): Item<'_>| {
             *whole = moved_bound(r, c, q, reach) > limit;
+        };
+        if rigid.len() >= PARALLEL_MIN_BODIES {
+            self.whole
+                .par_iter_mut()
+                .zip(rigid)
+                .zip(poses)
+                .zip(&self.reach)
+                .for_each(mark);
+        } else {
+            self.whole
+                .iter_mut()
+                .zip(rigid)
+                .zip(poses)
+                .zip(&self.reach)
+                .for_each(mark);
         }
         true
     }

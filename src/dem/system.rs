@@ -41,7 +41,7 @@ pub const STABLE_STEP_GAP: f64 = 2e-3;
 const PARALLEL_MIN_SPHERES: usize = 4096;
 
 /// The rigid bodies' kicks and drifts run on rayon from this many bodies.
-const PARALLEL_MIN_BODIES: usize = 512;
+pub(crate) const PARALLEL_MIN_BODIES: usize = 512;
 
 /// Where a sphere sits.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -548,8 +548,8 @@ fn gather(
     };
     // Node spheres come first, then each rigid body's in one run (see `spheres`).
     let (total, nodes) = (sx.len(), system.node_spheres());
-    let (sx_nodes, mut sx_rigid) = sx.split_at_mut(nodes);
-    let (sv_nodes, mut sv_rigid) = sv.split_at_mut(nodes);
+    let (sx_nodes, sx_rigid) = sx.split_at_mut(nodes);
+    let (sv_nodes, sv_rigid) = sv.split_at_mut(nodes);
     let node = |(s, (px, pv)): (usize, (&mut [f64; 3], &mut [f64; 3]))| {
         if let SphereAt::Node { node, body, inset } = system.spheres[s] {
             let p = x.map_or([0.0; 3], |x| x[node as usize]);
@@ -574,22 +574,16 @@ fn gather(
     // One task per rigid body: its rotation and angular velocity once, then its spheres
     // (all, into the whole set's buffers; or, in a partial step, its touched ones, into
     // its run of the touched spheres' buffers).
-    let (mut tx_rigid, mut tv_rigid): (&mut [[f64; 3]], &mut [[f64; 3]]) = match touched {
+    let (tx_rigid, tv_rigid): (&mut [[f64; 3]], &mut [[f64; 3]]) = match touched {
         Some((tx, tv)) => (tx, tv),
         None => (&mut [], &mut []),
     };
-    let mut bodies = Vec::with_capacity(rigid.len());
-    for (b, range) in system.rigid_spheres.iter().enumerate() {
-        let (x_here, x_rest) = std::mem::take(&mut sx_rigid).split_at_mut(range.len());
-        let (v_here, v_rest) = std::mem::take(&mut sv_rigid).split_at_mut(range.len());
-        (sx_rigid, sv_rigid) = (x_rest, v_rest);
-        let mine = only.map_or(0, |o| o.active.of(b).len());
-        let (tx_here, tx_rest) = std::mem::take(&mut tx_rigid).split_at_mut(mine);
-        let (tv_here, tv_rest) = std::mem::take(&mut tv_rigid).split_at_mut(mine);
-        (tx_rigid, tv_rigid) = (tx_rest, tv_rest);
-        bodies.push(((x_here, v_here), (tx_here, tv_here)));
-    }
-    let body = |(b, ((px, pv), (tx, tv))): (usize, &mut (SphereSlices, SphereSlices))| {
+    let count = system.rigid_spheres.len();
+    let starts = BodyRuns {
+        spheres: &system.rigid_spheres,
+        touched: only.map_or(&[], |o| o.active.ranges),
+    };
+    let body = |b: usize, (px, pv): SphereSlices, (tx, tv): SphereSlices| {
         let (r, shape) = (&rigid[b], &system.rigid[b]);
         let mine = only.and_then(|o| o.of(b));
         if mine.is_some_and(|(m, _)| m.is_empty()) {
@@ -618,10 +612,85 @@ fn gather(
             }
         }
     };
-    if total - nodes >= PARALLEL_MIN_SPHERES {
-        bodies.par_iter_mut().enumerate().for_each(body);
+    let leaf = if total - nodes >= PARALLEL_MIN_SPHERES {
+        BODIES_PER_TASK
     } else {
-        bodies.iter_mut().enumerate().for_each(body);
+        count
+    };
+    for_bodies(
+        0..count,
+        leaf,
+        &starts,
+        (sx_rigid, sv_rigid),
+        (tx_rigid, tv_rigid),
+        &body,
+    );
+}
+
+/// Rigid bodies per task of [`for_bodies`].
+const BODIES_PER_TASK: usize = 64;
+
+/// Each rigid body's run in the sphere buffers a gather fills: in the whole set's
+/// (its spheres) and in the touched rigid spheres' (none outside a partial step).
+struct BodyRuns<'a> {
+    spheres: &'a [Range<usize>],
+    touched: &'a [Range<usize>],
+}
+
+/// Two bodies' runs: of the whole set's spheres and of the touched ones.
+type Runs<'s> = (SphereSlices<'s>, SphereSlices<'s>);
+
+impl BodyRuns<'_> {
+    /// The runs of bodies `from..at` split off the front of buffers that start at body
+    /// `from`'s runs: (theirs, the rest).
+    fn split<'s>(
+        &self,
+        from: usize,
+        at: usize,
+        (x, v): SphereSlices<'s>,
+        (tx, tv): SphereSlices<'s>,
+    ) -> (Runs<'s>, Runs<'s>) {
+        // Where body b's run starts (b = the body count: where the last one ends).
+        let start = |runs: &[Range<usize>], b: usize| {
+            runs.get(b)
+                .map_or_else(|| runs.last().map_or(0, |r| r.end), |r| r.start)
+        };
+        let s = start(self.spheres, at) - start(self.spheres, from);
+        let t = start(self.touched, at) - start(self.touched, from);
+        let ((x0, x1), (v0, v1)) = (x.split_at_mut(s), v.split_at_mut(s));
+        let ((tx0, tx1), (tv0, tv1)) = (tx.split_at_mut(t), tv.split_at_mut(t));
+        (((x0, v0), (tx0, tv0)), ((x1, v1), (tx1, tv1)))
+    }
+}
+
+/// `body(b, spheres, touched)` for the rigid bodies `bodies`, each with its own runs of
+/// the buffers `spheres` and `touched` (which start at the first body's runs). Halves
+/// the bodies on rayon down to `leaf` bodies a task, so the buffers are split in
+/// parallel too rather than by one serial pass over every body.
+fn for_bodies<F>(
+    bodies: Range<usize>,
+    leaf: usize,
+    starts: &BodyRuns<'_>,
+    spheres: SphereSlices<'_>,
+    touched: SphereSlices<'_>,
+    body: &F,
+) where
+    F: Fn(usize, SphereSlices<'_>, SphereSlices<'_>) + Sync,
+{
+    if bodies.len() > leaf {
+        let mid = bodies.start + bodies.len() / 2;
+        let ((s0, t0), (s1, t1)) = starts.split(bodies.start, mid, spheres, touched);
+        rayon::join(
+            || for_bodies(bodies.start..mid, leaf, starts, s0, t0, body),
+            || for_bodies(mid..bodies.end, leaf, starts, s1, t1, body),
+        );
+    } else {
+        let (mut spheres, mut touched) = (spheres, touched);
+        for b in bodies {
+            let ((s0, t0), rest) = starts.split(b, b + 1, spheres, touched);
+            body(b, s0, t0);
+            (spheres, touched) = rest;
+        }
     }
 }
 

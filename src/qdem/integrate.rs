@@ -119,7 +119,7 @@ impl State {
 }
 
 /// Nodes per task of the node phases.
-const NODE_CHUNK: usize = 4096;
+const NODE_CHUNK: usize = 1024;
 
 /// One chunk of a node phase: (index, (((x, v), a), sums)) for the drift,
 /// (index, (((v, a), f), sums)) for the kick.
@@ -137,6 +137,10 @@ struct NodeSums {
     damping_work: f64,
     kinetic: f64,
     acceleration_squared: f64,
+    /// Σ ½(f_n + f_{n+1})·Δx of the hook's forces (0 when priming).
+    hook_work: f64,
+    /// Σ |f|²/m of the hook's forces (part of `pending_energy`).
+    hook_pending: f64,
     non_finite: bool,
 }
 
@@ -283,8 +287,9 @@ impl<'m> QdemSolver<'m> {
                 }
             }
         }
-        let (totals, _) = self.forces_and_accelerations(state, 0.0, hook);
+        let totals = self.forces_and_accelerations(state, 0.0, hook);
         let sums = self.node_partials.iter().fold(NodeSums::default(), merge);
+        self.pending_energy += 0.5 * self.dt * self.dt * sums.hook_pending;
         let verlet_correction = self.dt * self.dt / 8.0 * sums.acceleration_squared;
         state.energies = Energies {
             kinetic: sums.kinetic,
@@ -365,8 +370,10 @@ impl<'m> QdemSolver<'m> {
         let t_new = state.time + dt;
         let load_work = self.load_work(state, t_new);
         // Phases 2 and 3.
-        let (totals, hook_work) = self.forces_and_accelerations(state, t_new, hook);
+        let totals = self.forces_and_accelerations(state, t_new, hook);
         let phase3 = self.node_partials.iter().fold(NodeSums::default(), merge);
+        self.pending_energy += 0.5 * dt * dt * phase3.hook_pending;
+        let hook_work = phase3.hook_work;
         state.time = t_new;
         state.step += 1;
         let e = &mut state.energies;
@@ -430,16 +437,18 @@ impl<'m> QdemSolver<'m> {
         work
     }
 
-    /// Internal forces at (x, v), loads at `time`, then accelerations and the second
-    /// half kick (velocities are the half-step ones on entry when stepping; on priming
-    /// dt/2 kick is skipped). Node sums land in `node_partials`.
-    /// Returns the element totals and the work of the hook's forces over the step.
+    /// Internal forces at (x, v), loads at `time`, the hook's forces, then
+    /// accelerations and the second half kick (velocities are the half-step ones on
+    /// entry when stepping; on priming dt/2 kick is skipped). Node sums, with the hook
+    /// forces' work and their share of `pending_energy`, land in `node_partials`: the
+    /// hook's forces are added in the kick's own parallel pass rather than in a serial
+    /// pass over every node before it. Returns the element totals.
     fn forces_and_accelerations(
         &mut self,
         state: &mut State,
         time: f64,
         hook: Option<&mut ForceHook<'_>>,
-    ) -> (ElementTotals, f64) {
+    ) -> ElementTotals {
         let mut totals = self.model.internal_forces_with(
             &state.positions,
             &state.velocities,
@@ -461,11 +470,20 @@ impl<'m> QdemSolver<'m> {
                 f[2] += per_node.z;
             }
         }
-        let hook_work = match hook {
-            Some(hook) => self.add_hook_forces(state, time, hook),
-            None => 0.0,
+        // The hook's forces of this evaluation, and of the last one for the trapezoidal
+        // work (none when priming, or on the first call).
+        let hook = match hook {
+            Some(hook) => {
+                self.call_hook(state, time, hook);
+                let n = self.model.node_count();
+                let previous = (state.primed && self.hook_previous.len() == n)
+                    .then_some(self.hook_previous.as_slice());
+                Some((self.hook_forces.as_slice(), previous))
+            }
+            None => None,
         };
         let half = if state.primed { 0.5 * self.dt } else { 0.0 };
+        let dt = self.dt;
         let masses = self.model.node_masses();
         let (g, rate) = (self.gravity, self.damping_rate());
         let masks = &self.masks;
@@ -475,12 +493,26 @@ impl<'m> QdemSolver<'m> {
             for i in 0..v.len() {
                 let mask = masks[start + i];
                 let m = masses[start + i];
+                let mut fi = f[i].0;
+                if let Some((forces, previous)) = hook {
+                    let fh = forces[start + i];
+                    if let Some(previous) = previous {
+                        let p = previous[start + i];
+                        for d in 0..3 {
+                            s.hook_work += 0.5 * (fh[d] + p[d]) * dt * v[i][d];
+                        }
+                    }
+                    for d in 0..3 {
+                        fi[d] += fh[d];
+                    }
+                    s.hook_pending += (fh[0] * fh[0] + fh[1] * fh[1] + fh[2] * fh[2]) / m;
+                }
                 let (mut v2, mut a2) = (0.0, 0.0);
                 for d in 0..3 {
                     let (ad, vd) = if mask & (1 << d) != 0 {
                         (0.0, 0.0)
                     } else {
-                        let ad = (f[i].0[d] - rate * m * v[i][d]) / m + g[d];
+                        let ad = (fi[d] - rate * m * v[i][d]) / m + g[d];
                         (ad, v[i][d] + half * ad)
                     };
                     a[i][d] = ad;
@@ -513,7 +545,7 @@ impl<'m> QdemSolver<'m> {
                 .enumerate()
                 .for_each(kick);
         }
-        (totals, hook_work)
+        totals
     }
 
     /// Adds the group springs' forces −k ū e / N at positions `x` and returns their
@@ -542,9 +574,8 @@ impl<'m> QdemSolver<'m> {
         energy
     }
 
-    /// Calls the hook, adds its forces, and returns their trapezoidal work over the
-    /// step just drifted (0 when priming).
-    fn add_hook_forces(&mut self, state: &State, time: f64, hook: &mut ForceHook<'_>) -> f64 {
+    /// Calls the hook for this evaluation's forces, keeping the last evaluation's.
+    fn call_hook(&mut self, state: &State, time: f64, hook: &mut ForceHook<'_>) {
         let n = self.model.node_count();
         std::mem::swap(&mut self.hook_forces, &mut self.hook_previous);
         self.hook_forces.clear();
@@ -555,24 +586,6 @@ impl<'m> QdemSolver<'m> {
             &state.velocities,
             &mut self.hook_forces,
         );
-        let primed = state.primed && self.hook_previous.len() == n;
-        let dt2 = self.dt * self.dt;
-        let mut work = 0.0;
-        for i in 0..n {
-            let f = self.hook_forces[i];
-            let m = self.model.node_masses()[i];
-            let mut f2 = 0.0;
-            for (d, &fd) in f.iter().enumerate() {
-                if primed {
-                    let mean = 0.5 * (fd + self.hook_previous[i][d]);
-                    work += mean * self.dt * state.velocities[i][d];
-                }
-                self.forces[i].0[d] += fd;
-                f2 += fd * fd;
-            }
-            self.pending_energy += 0.5 * dt2 * f2 / m;
-        }
-        work
     }
 
     /// Stops a run that has blown up, naming the stable time step.
@@ -636,6 +649,8 @@ fn merge(a: NodeSums, b: &NodeSums) -> NodeSums {
         damping_work: a.damping_work + b.damping_work,
         kinetic: a.kinetic + b.kinetic,
         acceleration_squared: a.acceleration_squared + b.acceleration_squared,
+        hook_work: a.hook_work + b.hook_work,
+        hook_pending: a.hook_pending + b.hook_pending,
         non_finite: a.non_finite || b.non_finite,
     }
 }
