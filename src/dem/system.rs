@@ -871,6 +871,49 @@ mod tests {
     use crate::qdem::structured_box;
     use nalgebra::Point3;
 
+    /// Halving the bodies on rayon hands every body the same runs as one pass does:
+    /// its own spheres and touched spheres, empty runs included.
+    #[test]
+    fn bodies_split_in_halves_get_their_own_runs() {
+        let runs = BodyRuns {
+            spheres: &[0..3, 3..3, 3..7, 7..8, 8..12],
+            touched: &[0..1, 1..1, 1..3, 3..3, 3..5],
+        };
+        let fill = |n: usize| (0..n).map(|i| [i as f64; 3]).collect::<Vec<_>>();
+        let seen = |leaf: usize| {
+            let (mut x, mut v, mut tx, mut tv) = (fill(12), fill(12), fill(5), fill(5));
+            let got = std::sync::Mutex::new(Vec::new());
+            let body = |b: usize, (x, v): SphereSlices, (tx, tv): SphereSlices| {
+                assert_eq!((x.len(), tx.len()), (v.len(), tv.len()));
+                let first = |s: &[[f64; 3]]| s.first().map(|p| p[0]);
+                got.lock()
+                    .unwrap()
+                    .push((b, x.len(), first(x), tx.len(), first(tx)));
+            };
+            for_bodies(
+                0..5,
+                leaf,
+                &runs,
+                (&mut x, &mut v),
+                (&mut tx, &mut tv),
+                &body,
+            );
+            let mut got = got.into_inner().unwrap();
+            got.sort_by_key(|g| g.0);
+            got
+        };
+        let expected = vec![
+            (0, 3, Some(0.0), 1, Some(0.0)),
+            (1, 0, None, 0, None),
+            (2, 4, Some(3.0), 2, Some(1.0)),
+            (3, 1, Some(7.0), 0, None),
+            (4, 4, Some(8.0), 2, Some(3.0)),
+        ];
+        assert_eq!(seen(5), expected);
+        assert_eq!(seen(1), expected);
+        assert_eq!(seen(2), expected);
+    }
+
     /// One rigid 0.2 × 0.2 × 0.1 m block (2700 kg/m³) with spheres of radius 10 mm at
     /// its 8 corners inset by r along the diagonal (touching the faces), on the floor.
     fn block_on_floor(mu: f64, gravity: [f64; 3]) -> MultiBody {
