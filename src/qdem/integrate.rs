@@ -174,7 +174,9 @@ pub struct QdemSolver<'m> {
 /// Nodal forces a caller adds to the internal ones every step (e.g. contacts):
 /// `hook(time, positions, velocities, forces)` with the drifted positions x_{n+1} and
 /// the half-step velocities v_{n+½} (v_0 when priming), adding into `forces` (zeroed).
-pub type ForceHook<'h> = dyn FnMut(f64, &[Vec3], &[Vec3], &mut [Vec3]) + 'h;
+/// `Send`, so that it may run beside the element forces (see
+/// `forces_and_accelerations`).
+pub type ForceHook<'h> = dyn FnMut(f64, &[Vec3], &[Vec3], &mut [Vec3]) + Send + 'h;
 
 impl<'m> QdemSolver<'m> {
     /// Checks the boundary conditions and the time step `dt` (s) against the model.
@@ -449,12 +451,21 @@ impl<'m> QdemSolver<'m> {
         time: f64,
         hook: Option<&mut ForceHook<'_>>,
     ) -> ElementTotals {
-        let mut totals = self.model.internal_forces_with(
-            &state.positions,
-            &state.velocities,
-            &mut self.forces,
-            &mut self.element_partials,
-        );
+        // The element forces and the hook's (contacts) read the same positions and
+        // velocities and write their own buffers, so they run side by side: a thread
+        // that is done with one helps with the other's parallel loops, and neither
+        // waits at the other's end. The bits do not depend on it.
+        let (model, x, v) = (self.model, &state.positions, &state.velocities);
+        let (forces, partials) = (&mut self.forces, &mut self.element_partials);
+        let mut internal = || model.internal_forces_with(x, v, forces, partials);
+        let (mut totals, hooked) = match hook {
+            Some(hook) => {
+                let (current, previous) = (&mut self.hook_forces, &mut self.hook_previous);
+                let call = || call_hook(current, previous, (time, x, v), hook);
+                (rayon::join(internal, call).0, true)
+            }
+            None => (internal(), false),
+        };
         totals.strain_energy += self.add_spring_forces(&state.positions);
         let gravity_squared = self.gravity.iter().map(|g| g * g).sum::<f64>();
         let dt2 = self.dt * self.dt;
@@ -472,16 +483,12 @@ impl<'m> QdemSolver<'m> {
         }
         // The hook's forces of this evaluation, and of the last one for the trapezoidal
         // work (none when priming, or on the first call).
-        let hook = match hook {
-            Some(hook) => {
-                self.call_hook(state, time, hook);
-                let n = self.model.node_count();
-                let previous = (state.primed && self.hook_previous.len() == n)
-                    .then_some(self.hook_previous.as_slice());
-                Some((self.hook_forces.as_slice(), previous))
-            }
-            None => None,
-        };
+        let hook = hooked.then(|| {
+            let n = self.model.node_count();
+            let previous = (state.primed && self.hook_previous.len() == n)
+                .then_some(self.hook_previous.as_slice());
+            (self.hook_forces.as_slice(), previous)
+        });
         let half = if state.primed { 0.5 * self.dt } else { 0.0 };
         let dt = self.dt;
         let masses = self.model.node_masses();
@@ -574,20 +581,6 @@ impl<'m> QdemSolver<'m> {
         energy
     }
 
-    /// Calls the hook for this evaluation's forces, keeping the last evaluation's.
-    fn call_hook(&mut self, state: &State, time: f64, hook: &mut ForceHook<'_>) {
-        let n = self.model.node_count();
-        std::mem::swap(&mut self.hook_forces, &mut self.hook_previous);
-        self.hook_forces.clear();
-        self.hook_forces.resize(n, [0.0; 3]);
-        hook(
-            time,
-            &state.positions,
-            &state.velocities,
-            &mut self.hook_forces,
-        );
-    }
-
     /// Stops a run that has blown up, naming the stable time step.
     fn check(&self, state: &State, totals: &ElementTotals, non_finite: bool) -> Result<()> {
         let e = &state.energies;
@@ -641,6 +634,20 @@ fn check_damping(damping: Damping, dt: f64) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// Calls `hook` at (time, x, v) for this evaluation's forces into `current` (zeroed
+/// first, one per node), keeping the last evaluation's in `previous`.
+fn call_hook(
+    current: &mut Vec<Vec3>,
+    previous: &mut Vec<Vec3>,
+    (time, x, v): (f64, &[Vec3], &[Vec3]),
+    hook: &mut ForceHook<'_>,
+) {
+    std::mem::swap(current, previous);
+    current.clear();
+    current.resize(x.len(), [0.0; 3]);
+    hook(time, x, v, current);
 }
 
 fn merge(a: NodeSums, b: &NodeSums) -> NodeSums {
