@@ -40,7 +40,8 @@ pub const STABLE_STEP_GAP: f64 = 2e-3;
 /// more than they save).
 const PARALLEL_MIN_SPHERES: usize = 4096;
 
-/// The rigid bodies' kicks and drifts run on rayon from this many bodies.
+/// The rigid bodies' kicks and drifts (and the partial step's plan) run on rayon from
+/// this many bodies.
 pub(crate) const PARALLEL_MIN_BODIES: usize = 512;
 
 /// Where a sphere sits.
@@ -571,9 +572,9 @@ fn gather(
             .enumerate()
             .for_each(node);
     }
-    // One task per rigid body: its rotation and angular velocity once, then its spheres
-    // (all, into the whole set's buffers; or, in a partial step, its touched ones, into
-    // its run of the touched spheres' buffers).
+    // Each rigid body (tasks of `BODIES_PER_TASK` bodies): its rotation and angular
+    // velocity once, then its spheres (all, into the whole set's buffers; or, in a
+    // partial step, its touched ones, into its run of the touched spheres' buffers).
     let (tx_rigid, tv_rigid): (&mut [[f64; 3]], &mut [[f64; 3]]) = match touched {
         Some((tx, tv)) => (tx, tv),
         None => (&mut [], &mut []),
