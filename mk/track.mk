@@ -76,7 +76,8 @@ results/track_impact_paper_bogie.json: $(TRACK_PAPER_BOGIE) | $(RELEASE)/ballast
 	$(RELEASE)/ballast-post spectra $(dir $<)sensors.csv --load $(TRACK_LOAD) --out $(@:.json=)
 
 ## The paper preset as published (`make track-paper`): the five cars of the default
-## train load (3.5 s) on the paper bed, ≈ 3.6 h on 2 cores at the first bogie's rate.
+## train load (3.5 s) on the paper bed, 5.8 M steps: ≈ 1.4 h on 2 idle cores (≈ 1 200
+## steps/s on 2026-12-07).
 ## A checkpoint every 50 000 steps (30 ms); a killed run resumes where it stopped, so
 ## it can be run in pieces, e.g. `nice -n 19 make track-paper TRACK_PAPER_THREADS=1`
 ## beside other work. Its spectra go to results/track_impact_paper*, its settlement
