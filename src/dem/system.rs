@@ -7,7 +7,8 @@
 //! 2. QDEM bodies: [`QdemSolver::step_with`], whose force hook gathers every sphere's
 //!    position and half-step velocity, evaluates the contacts ([`Contacts`]), adds the
 //!    node spheres' forces and sums the rigid spheres' forces into force and torque;
-//! 3. rigid bodies: second half kick with the new forces.
+//! 3. rigid bodies: second half kick with the new forces (in the hook, each body right
+//!    after its force is summed: one pass over the bodies, not two).
 //!
 //! The energy balance covers the whole system (kinetic, strain and spring energy,
 //! viscous, slider and dashpot dissipation, work of gravity and loads); a state that is
@@ -221,6 +222,23 @@ pub struct MultiBodySolver<'m> {
     stable: Option<SystemStability>,
     primed: bool,
     damping: f64,
+    /// Each rigid body's second half kick of the last step: (energy taken by the
+    /// damping, kinetic energy after, state finite), in body order.
+    kicked: Vec<Kicked>,
+}
+
+/// A rigid body's second half kick: (energy taken by the damping, kinetic energy after
+/// the kick, position and velocity finite).
+type Kicked = (f64, f64, bool);
+
+/// The rigid bodies' second half kick, given to the force hook of a step so that each
+/// body is kicked as soon as its contact force is summed.
+struct SecondKick<'k> {
+    gravity: [f64; 3],
+    half_dt: f64,
+    damping: f64,
+    /// One entry per body, in body order (see [`MultiBodySolver::kicked`]).
+    out: &'k mut Vec<Kicked>,
 }
 
 impl MultiBody {
@@ -288,6 +306,7 @@ impl<'m> MultiBodySolver<'m> {
             stable: None,
             primed: false,
             damping: 0.0,
+            kicked: Vec::new(),
         })
     }
 
@@ -385,8 +404,14 @@ impl<'m> MultiBodySolver<'m> {
     }
 
     /// The QDEM part of priming (`prime`) or of a step, with the contacts as its force
-    /// hook (without QDEM bodies, the contacts alone).
+    /// hook (without QDEM bodies, the contacts alone). In a step the hook also gives the
+    /// rigid bodies their second half kick (into `kicked`).
     fn deformable_pass(&mut self, state: &mut MultiState, prime: bool) -> Result<()> {
+        if !prime && state.deformable.as_ref().is_some_and(|s| !s.is_primed()) {
+            // `step_with` would prime it with the step's hook, kicking the rigid bodies
+            // twice: prime it here with the priming hook.
+            self.deformable_pass(state, true)?;
+        }
         let MultiBodySolver {
             system,
             qdem,
@@ -394,6 +419,8 @@ impl<'m> MultiBodySolver<'m> {
             dt,
             spheres,
             last,
+            damping,
+            kicked,
             ..
         } = self;
         let MultiState {
@@ -403,7 +430,13 @@ impl<'m> MultiBodySolver<'m> {
             ..
         } = state;
         let mut hook = |_t: f64, x: &[[f64; 3]], v: &[[f64; 3]], f: &mut [[f64; 3]]| {
-            *last = contact_forces(system, contacts, cstate, rigid, x, v, f, *dt, spheres);
+            let kick = (!prime).then_some(SecondKick {
+                gravity: system.gravity,
+                half_dt: 0.5 * *dt,
+                damping: *damping,
+                out: &mut *kicked,
+            });
+            *last = contact_forces(system, contacts, cstate, rigid, x, v, f, *dt, spheres, kick);
         };
         match (qdem.as_mut(), deformable.as_mut()) {
             (Some(q), Some(s)) if prime => q.prime_with(s, Some(&mut hook)),
@@ -441,16 +474,11 @@ impl<'m> MultiBodySolver<'m> {
             damped += d;
             gravity_work += w;
         }
+        // The second half kick happens in the force hook.
         self.deformable_pass(state, false)?;
-        let second_half = |(r, shape): (&mut RigidState, &RigidShape)| {
-            let damped = r.kick(shape, g, half, damping);
-            let finite = r.position.iter().chain(&r.velocity).all(|c| c.is_finite());
-            (damped, r.kinetic_energy(shape), finite)
-        };
-        let second = per_body(&mut state.rigid, &system.rigid, second_half);
         let mut kinetic = 0.0;
         let mut finite = true;
-        for &(d, k, f) in &second {
+        for &(d, k, f) in &self.kicked {
             damped += d;
             kinetic += k;
             finite &= f;
@@ -741,6 +769,7 @@ fn contact_forces(
     f: &mut [[f64; 3]],
     dt: f64,
     spheres: &mut SphereBuffers,
+    kick: Option<SecondKick>,
 ) -> ContactTotals {
     let partial = spheres.plan(cstate, rigid, contacts.skin);
     gather(system, Some(x), Some(v), rigid, spheres.targets(partial));
@@ -771,8 +800,8 @@ fn contact_forces(
             }
         }
     }
-    // Only touched spheres carry a force. Each body sums its own, so the bodies may
-    // run in parallel with the same bits.
+    // Only touched spheres carry a force. Each body sums its own (and is kicked with
+    // it in a step), so the bodies may run in parallel with the same bits.
     let active = spheres.active();
     let (tx, tf) = (&spheres.tx[nodes..], &tf[nodes..]);
     let sum = |(b, body): (usize, &mut RigidState)| {
@@ -790,10 +819,31 @@ fn contact_forces(
         body.force = force;
         body.torque = torque;
     };
-    if active.active.len() >= PARALLEL_MIN_SPHERES {
-        rigid.par_iter_mut().enumerate().for_each(sum);
-    } else {
-        rigid.iter_mut().enumerate().for_each(sum);
+    let many = active.active.len() >= PARALLEL_MIN_SPHERES || rigid.len() >= PARALLEL_MIN_BODIES;
+    match kick {
+        None if many => rigid.par_iter_mut().enumerate().for_each(sum),
+        None => rigid.iter_mut().enumerate().for_each(sum),
+        Some(k) => {
+            let (g, half, damping) = (k.gravity, k.half_dt, k.damping);
+            let sum_and_kick = |((b, body), shape): ((usize, &mut RigidState), &RigidShape)| {
+                sum((b, &mut *body));
+                let damped = body.kick(shape, g, half, damping);
+                let finite = body
+                    .position
+                    .iter()
+                    .chain(&body.velocity)
+                    .all(|c| c.is_finite());
+                (damped, body.kinetic_energy(shape), finite)
+            };
+            if many {
+                let bodies = rigid.par_iter_mut().enumerate().zip(&system.rigid);
+                bodies.map(sum_and_kick).collect_into_vec(k.out);
+            } else {
+                let bodies = rigid.iter_mut().enumerate().zip(&system.rigid);
+                k.out.clear();
+                k.out.extend(bodies.map(sum_and_kick));
+            }
+        }
     }
     totals
 }

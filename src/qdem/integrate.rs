@@ -92,6 +92,12 @@ pub struct State {
 }
 
 impl State {
+    /// Whether a solver has computed this state's forces and accelerations (a step
+    /// primes an unprimed state first).
+    pub fn is_primed(&self) -> bool {
+        self.primed
+    }
+
     /// The model at rest in its reference configuration at t = 0.
     pub fn at_rest(model: &QdemModel) -> Self {
         let n = model.node_count();
