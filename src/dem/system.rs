@@ -405,11 +405,6 @@ impl<'m> MultiBodySolver<'m> {
     /// hook (without QDEM bodies, the contacts alone). In a step the hook also gives the
     /// rigid bodies their second half kick (into `kicked`).
     fn deformable_pass(&mut self, state: &mut MultiState, prime: bool) -> Result<()> {
-        if !prime && state.deformable.as_ref().is_some_and(|s| !s.is_primed()) {
-            // `step_with` would prime it with the step's hook, kicking the rigid bodies
-            // twice: prime it here with the priming hook.
-            self.deformable_pass(state, true)?;
-        }
         let MultiBodySolver {
             system,
             qdem,
@@ -447,7 +442,11 @@ impl<'m> MultiBodySolver<'m> {
 
     /// Advances the system by one step.
     pub fn step(&mut self, state: &mut MultiState) -> Result<()> {
-        if !self.primed && state.step == 0 {
+        // A QDEM state never primed (a solver resumed on a fresh state) is primed here,
+        // before the rigid bodies' first half kick: `step_with` would prime it after
+        // their drift, with the step's hook, which kicks them.
+        let unprimed = state.deformable.as_ref().is_some_and(|s| !s.is_primed());
+        if (!self.primed && state.step == 0) || unprimed {
             self.prime(state)?;
         }
         self.primed = true;
@@ -1057,6 +1056,40 @@ mod tests {
         );
         assert!(state.kinetic() < 1e-9 * mass * g * 0.05);
         assert!(state.balance_error().abs() < 1e-3 * state.external_work().abs());
+    }
+
+    /// A solver resumed on a state whose QDEM part was never primed primes it at the
+    /// start of its first step, as a fresh solver does: the same bits. (Primed inside
+    /// the QDEM step instead, after the rigid drift and with the step's hook, the block
+    /// took a second half kick and its contacts were evaluated twice.)
+    #[test]
+    fn a_solver_resumed_on_an_unprimed_state_runs_as_a_fresh_one() {
+        let mut system = block_on_floor(0.5, [0.0, 0.0, -9.81]);
+        let (nodes, tets) = structured_box(Vector3::new(0.1, 0.1, 0.1), [1, 1, 1]);
+        let away: Vec<Point3<f64>> = nodes
+            .iter()
+            .map(|p| p + Vector3::new(5.0, 0.0, 1.0))
+            .collect();
+        let material = crate::qdem::QdemMaterial::elastic(2000.0, 1e7, 0.3);
+        system.model = Some(QdemModel::new(&away, &tets, &material).unwrap());
+        let run = |resumed: bool| {
+            let mut state = system.at_rest();
+            let mut solver = MultiBodySolver::new(&system, 2e-5, 1e-3).unwrap();
+            if resumed {
+                solver.resume(&state.clone(), Vec::new());
+            }
+            for _ in 0..200 {
+                solver.step(&mut state).unwrap();
+            }
+            state
+        };
+        let (primed, resumed) = (run(false), run(true));
+        // The block has sunk into its springs (the run is not a state at rest).
+        let sink = system.rigid[0].centre[2] - primed.rigid[0].position[2];
+        assert!(sink > 1e-7, "sink {sink}");
+        assert_eq!(primed.rigid, resumed.rigid);
+        let positions = |s: MultiState| s.deformable.unwrap().positions;
+        assert_eq!(positions(primed), positions(resumed));
     }
 
     /// The skin sets the cost, not the result: a block dropped 1 cm onto a 35° slope
