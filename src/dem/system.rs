@@ -233,7 +233,6 @@ type Kicked = (f64, f64, bool);
 /// The rigid bodies' second half kick, given to the force hook of a step so that each
 /// body is kicked as soon as its contact force is summed.
 struct SecondKick<'k> {
-    half_dt: f64,
     damping: f64,
     /// One entry per body, in body order (see [`MultiBodySolver::kicked`]).
     out: &'k mut Vec<Kicked>,
@@ -424,7 +423,6 @@ impl<'m> MultiBodySolver<'m> {
         } = state;
         let mut hook = |_t: f64, x: &[[f64; 3]], v: &[[f64; 3]], f: &mut [[f64; 3]]| {
             let kick = (!prime).then_some(SecondKick {
-                half_dt: 0.5 * *dt,
                 damping: *damping,
                 out: &mut *kicked,
             });
@@ -820,7 +818,7 @@ fn contact_forces(
         None if many => rigid.par_iter_mut().enumerate().for_each(sum),
         None => rigid.iter_mut().enumerate().for_each(sum),
         Some(k) => {
-            let (g, half, damping) = (system.gravity, k.half_dt, k.damping);
+            let (g, half, damping) = (system.gravity, 0.5 * dt, k.damping);
             let sum_and_kick = |((b, body), shape): ((usize, &mut RigidState), &RigidShape)| {
                 sum((b, &mut *body));
                 let damped = body.kick(shape, g, half, damping);
