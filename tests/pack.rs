@@ -1262,6 +1262,26 @@ fn tamping_the_quick_bed_packs_ballast_under_the_lifted_sleeper() {
     let mut seen: Vec<f64> = rows.iter().map(|r| r[phase]).collect();
     seen.dedup();
     assert_eq!(seen, [1.0, 2.0, 3.0, 0.0], "phases in order");
+    // The layers (`…_top`, `…_bottom`): the halves of the box under the tamped sleeper and
+    // of the crib beside it. Equal volumes, so the whole box is their mean at every step:
+    // under the sleeper too while the three boxes follow it up by the 20 mm lift (a half
+    // left behind would differ from the whole by the lift gap's few per cent).
+    for whole in ["under_sleeper_1", "crib_1_2"] {
+        let c = |part: &str| col(&format!("compactness_{whole}{part}"));
+        let (all, top, bottom) = (c(""), c("_top"), c("_bottom"));
+        for r in &rows {
+            let mean = 0.5 * (r[top] + r[bottom]);
+            assert!(
+                (r[all] - mean).abs() < 1e-9,
+                "{whole} at {} s: {} against the halves' mean {mean}",
+                r[0],
+                r[all]
+            );
+        }
+    }
+    assert!(header
+        .iter()
+        .all(|h| !h.starts_with("compactness_under_sleeper_2_")));
     // Each tine advances (at most its 20 mm) unless the ballast holds it: its squeezing
     // cylinder (11 kN, the scene's default) follows the push-back averaged over about a
     // vibration period, so a tine that never moved was pushed back by more than that
