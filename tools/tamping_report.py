@@ -10,6 +10,13 @@
       time, and a table of both runs' figures on stdout (most kinetic energy, the
       energy the truncated solve made: the sum of the steps' positive energy rises,
       mean push-back in the squeeze, compactness before -> after, largest deflection).
+  tamping_report.py layers DIR... | layers --pack BIN --nscd BIN [--seeds N] [--out DIR]
+      the compactness by layer (the halves `..._top` and `..._bottom` of the box under
+      the tamped sleeper and of the cribs beside it) at the start, the squeeze's start
+      and end and the end of each run DIR, beside Shi et al. (2020): +7.56 % in the top
+      layer under the sleeper, -34.77 % in the crib; with --pack and --nscd, over the
+      quick tamping (synchronous DDM) on the quick beds of seeds 1..N (OUT/layers-SEED,
+      the beds shared with the ensemble studies), with the mean change per layer.
   tamping_report.py bench --nscd BIN --preset P --steps N --out DIR [--repeat R] [--fresh 1]
                     [--versions 1,2,3,4,5] [--interleave K]
       runs scenes/tamping.toml --preset P for its first N steps in the three versions
@@ -702,6 +709,86 @@ def ensemble(pack, nscd, seeds, out):
     print(ensemble_tools.paired_line(diffs) + " (issue #7: within 2 %; seed 000: 1.7 %)")
 
 
+SHI_2020 = {"under_top": 7.56, "crib": -34.77}
+
+
+def layer_marks(directory):
+    """The compactness of every box of a tamping run at the start, the first squeeze's
+    start and end and the last row, as {box: [four values]} (from tamping.csv)."""
+    _, rows = load(directory)
+    squeeze = [r for r in rows if r["phase"] == 2.0]
+    if not squeeze:
+        sys.exit("tamping_report: %s: no squeeze in tamping.csv" % directory)
+    marks = (rows[0], squeeze[0], squeeze[-1], rows[-1])
+    boxes = [c[len("compactness_"):] for c in rows[0] if c.startswith("compactness_")]
+    if not any(b.endswith("_top") for b in boxes):
+        sys.exit("tamping_report: %s: no layer boxes (..._top): run by an older ballast-nscd"
+                 % directory)
+    return {b: [m["compactness_" + b] for m in marks] for b in boxes}
+
+
+def layer_rows(directory):
+    """The layer boxes of a run (the under-sleeper box and the cribs beside the tamped
+    sleeper, whole and by halves), as (box, published name or None, four marks)."""
+    marks = layer_marks(directory)
+    halved = [b[: -len("_top")] for b in marks if b.endswith("_top")]
+    out = []
+    for whole in halved:
+        kind = "under" if whole.startswith("under_sleeper_") else "crib"
+        for part in ("", "_top", "_bottom"):
+            published = {("under", "_top"): "under_top", ("crib", ""): "crib",
+                         ("crib", "_top"): "crib"}.get((kind, part))
+            out.append((whole + part, published, marks[whole + part]))
+    return out
+
+
+def change(a, b):
+    return 100.0 * (b - a) / a
+
+
+def layers(directories):
+    """Prints the layer table of each run directory."""
+    for d in directories:
+        print("\n## Compactness by layer: %s\n" % d)
+        print("| box | start | squeeze start | squeeze end | end | over the cycle | in the squeeze | Shi et al. 2020 |")
+        print("|---|---:|---:|---:|---:|---:|---:|---:|")
+        for box, published, (s0, q0, q1, e) in layer_rows(d):
+            print("| %s | %.4f | %.4f | %.4f | %.4f | %+.1f %% | %+.1f %% | %s |"
+                  % (box, s0, q0, q1, e, change(s0, e), change(q0, q1),
+                     "%+.2f %%" % SHI_2020[published] if published else ""))
+
+
+def layers_ensemble(pack, nscd, seeds, out):
+    """The quick tamping (synchronous DDM) on the quick beds of seeds 1..SEEDS, its
+    layer tables, and the mean change per layer over the beds."""
+    os.makedirs(out, exist_ok=True)
+    runs = []
+    for seed in range(1, seeds + 1):
+        packing, _ = ensemble_tools.pack_bed(pack, "quick", seed, out, "tamping_report")
+        d = os.path.join(out, "layers-%d" % seed)
+        ensemble_tools.run_once(quick_tamping(nscd, packing, "synchronous"), d,
+                                "tamping_report", "seed %d, layers" % seed)
+        runs.append(d)
+    layers(runs)
+    per_box = {}
+    for d in runs:
+        for box, published, (s0, q0, q1, e) in layer_rows(d):
+            # Boxes by kind, not number: the cribs beside the tamped sleeper.
+            key = re.sub(r"_\d+(_\d+)?", "", box, count=1)
+            per_box.setdefault((key, published), []).append((change(s0, e), change(q0, q1)))
+    print("\n## Mean change by layer over %d quick beds (one cycle each)\n" % seeds)
+    print("| box | over the cycle: mean (sd) | in the squeeze: mean (sd) | rises in the squeeze | Shi et al. 2020 |")
+    print("|---|---:|---:|---:|---:|")
+    for (key, published), values in per_box.items():
+        cycle = [v[0] for v in values]
+        squeeze = [v[1] for v in values]
+        sd = lambda xs: statistics.stdev(xs) if len(xs) > 1 else float("nan")
+        print("| %s | %+.1f %% (%.1f) | %+.1f %% (%.1f) | %d of %d | %s |"
+              % (key, statistics.mean(cycle), sd(cycle), statistics.mean(squeeze), sd(squeeze),
+                 sum(1 for x in squeeze if x > 0), len(squeeze),
+                 "%+.2f %%" % SHI_2020[published] if published else ""))
+
+
 def last_residuals(directory):
     """The last row of DIRECTORY/residuals.csv, as floats."""
     with open(os.path.join(directory, "residuals.csv")) as f:
@@ -792,6 +879,14 @@ def main(argv):
         opts = dict(zip(argv[1::2], argv[2::2]))
         ensemble(opts["--pack"], opts["--nscd"], int(opts.get("--seeds", "6")),
                  opts.get("--out", "results/tamping-ensemble"))
+        return 0
+    if argv and argv[0] == "layers" and len(argv) > 1 and not argv[1].startswith("--"):
+        layers(argv[1:])
+        return 0
+    if argv and argv[0] == "layers":
+        opts = dict(zip(argv[1::2], argv[2::2]))
+        layers_ensemble(opts["--pack"], opts["--nscd"], int(opts.get("--seeds", "6")),
+                        opts.get("--out", "results/tamping-ensemble"))
         return 0
     if argv and argv[0] == "creep":
         opts = dict(zip(argv[1::2], argv[2::2]))
