@@ -171,7 +171,10 @@ def chart(directory, out):
     for c in boxes:
         name = c[len("compactness_"):]
         style = dict(lw=2.0) if name == tamped else dict(lw=1.0, alpha=0.8)
-        label = name + (" (follows the sleeper)" if name == tamped else "")
+        if name.endswith(("_top", "_bottom")):
+            style["ls"] = "--"
+        follows = name == tamped or name.startswith(tamped + "_")
+        label = name + (" (follows the sleeper)" if follows else "")
         ax1.plot(t, [r[c] for r in rows], label=label, **style)
     ax1.set_ylabel("solid fraction")
     ax1.set_title(
