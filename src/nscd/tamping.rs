@@ -1004,3 +1004,51 @@ impl TampingMonitor {
             )
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn boxed(name: &str, x: [f64; 2], z: [f64; 2]) -> (String, ControlBox) {
+        let bx = ControlBox {
+            min: Point3::new(x[0], -0.4, z[0]),
+            max: Point3::new(x[1], 0.4, z[1]),
+        };
+        (name.to_string(), bx)
+    }
+
+    /// Sleeper 1 of a periodic strip of twelve: the halves are of its own box and of
+    /// the cribs on both sides (the one across the ends included), split at mid-height,
+    /// and of nothing else (not sleeper 11's or 12's boxes, whose names share digits).
+    #[test]
+    fn layer_halves_split_the_tamped_sleepers_box_and_the_cribs_beside_it() {
+        let mut boxes = vec![
+            boxed("bed", [0.0, 7.2], [0.04, 0.25]),
+            boxed("under_sleeper_1", [0.17, 0.43], [0.04, 0.25]),
+            boxed("under_sleeper_11", [6.17, 6.43], [0.04, 0.25]),
+            boxed("crib_1_2", [0.43, 0.77], [0.04, 0.31]),
+            boxed("crib_10_11", [5.83, 6.17], [0.04, 0.31]),
+            boxed("crib_11_12", [6.43, 6.77], [0.04, 0.31]),
+            boxed("crib_12_1", [7.03, 7.37], [0.04, 0.31]),
+        ];
+        let added = layer_halves(&mut boxes, 1);
+        let names: Vec<&str> = added.iter().map(|&k| boxes[k].0.as_str()).collect();
+        assert_eq!(
+            names,
+            [
+                "under_sleeper_1_top",
+                "under_sleeper_1_bottom",
+                "crib_1_2_top",
+                "crib_1_2_bottom",
+                "crib_12_1_top",
+                "crib_12_1_bottom",
+            ]
+        );
+        let crib = &boxes[added[2]].1;
+        assert_eq!((crib.min.z, crib.max.z), (0.175, 0.31));
+        assert_eq!((crib.min.x, crib.max.x), (0.43, 0.77));
+        let bottom = &boxes[added[5]].1;
+        assert_eq!((bottom.min.z, bottom.max.z), (0.04, 0.175));
+        assert_eq!((bottom.min.x, bottom.max.x), (7.03, 7.37));
+    }
+}
