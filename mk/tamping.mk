@@ -72,7 +72,7 @@ TAMPING_CREEP_SEEDS ?= 3
 ## The compactness by layer (the top and bottom halves of the box under the tamped
 ## sleeper and of the crib) over TAMPING_LAYERS_SEEDS quick beds, beside the published
 ## +7.56 % (top layer under the sleeper) and -34.77 % (crib) of Shi et al. (2020).
-## About 2 min a bed on 2 cores.
+## About 3.5 min a bed on 2 cores (packing and tamping; measured beside a nice-19 run).
 TAMPING_LAYERS_SEEDS ?= 6
 .PHONY: tamping-ensemble tamping-creep tamping-layers
 tamping-ensemble: $(TAMPING_STUDY_INPUTS) | $(RELEASE)/ballast-pack $(RELEASE)/ballast-nscd $(VENV_STAMP)

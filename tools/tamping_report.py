@@ -712,7 +712,8 @@ def ensemble(pack, nscd, seeds, out):
     print(ensemble_tools.paired_line(diffs) + " (issue #7: within 2 %; seed 000: 1.7 %)")
 
 
-SHI_2020 = {"under_top": 7.56, "crib": -34.77}
+# Shi et al. (2020), by (box kind, layer): the top layer under the sleeper, the crib.
+SHI_2020 = {("under", "_top"): 7.56, ("crib", ""): -34.77, ("crib", "_top"): -34.77}
 
 
 def layer_marks(directory):
@@ -732,16 +733,14 @@ def layer_marks(directory):
 
 def layer_rows(directory):
     """The layer boxes of a run (the under-sleeper box and the cribs beside the tamped
-    sleeper, whole and by halves), as (box, published name or None, four marks)."""
+    sleeper, whole and by halves), as (box, published change in % or None, four marks)."""
     marks = layer_marks(directory)
     halved = [b[: -len("_top")] for b in marks if b.endswith("_top")]
     out = []
     for whole in halved:
         kind = "under" if whole.startswith("under_sleeper_") else "crib"
         for part in ("", "_top", "_bottom"):
-            published = {("under", "_top"): "under_top", ("crib", ""): "crib",
-                         ("crib", "_top"): "crib"}.get((kind, part))
-            out.append((whole + part, published, marks[whole + part]))
+            out.append((whole + part, SHI_2020.get((kind, part)), marks[whole + part]))
     return out
 
 
@@ -749,47 +748,58 @@ def change(a, b):
     return 100.0 * (b - a) / a
 
 
+def published_cell(value):
+    return "%+.2f %%" % value if value is not None else ""
+
+
+def print_layers(directory, rows):
+    """Prints the layer table of one run (its `layer_rows`)."""
+    print("\n## Compactness by layer: %s\n" % directory)
+    print("| box | start | squeeze start | squeeze end | end | over the cycle | in the squeeze | Shi et al. 2020 |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|")
+    for box, published, (s0, q0, q1, e) in rows:
+        print("| %s | %.4f | %.4f | %.4f | %.4f | %+.1f %% | %+.1f %% | %s |"
+              % (box, s0, q0, q1, e, change(s0, e), change(q0, q1), published_cell(published)))
+
+
 def layers(directories):
     """Prints the layer table of each run directory."""
     for d in directories:
-        print("\n## Compactness by layer: %s\n" % d)
-        print("| box | start | squeeze start | squeeze end | end | over the cycle | in the squeeze | Shi et al. 2020 |")
-        print("|---|---:|---:|---:|---:|---:|---:|---:|")
-        for box, published, (s0, q0, q1, e) in layer_rows(d):
-            print("| %s | %.4f | %.4f | %.4f | %.4f | %+.1f %% | %+.1f %% | %s |"
-                  % (box, s0, q0, q1, e, change(s0, e), change(q0, q1),
-                     "%+.2f %%" % SHI_2020[published] if published else ""))
+        print_layers(d, layer_rows(d))
 
 
 def layers_ensemble(pack, nscd, seeds, out):
     """The quick tamping (synchronous DDM) on the quick beds of seeds 1..SEEDS, its
     layer tables, and the mean change per layer over the beds."""
     os.makedirs(out, exist_ok=True)
-    runs = []
+    per_box = {}
+    tables = []
     for seed in range(1, seeds + 1):
         packing, _ = ensemble_tools.pack_bed(pack, "quick", seed, out, "tamping_report")
         d = os.path.join(out, "layers-%d" % seed)
         ensemble_tools.run_once(quick_tamping(nscd, packing, "synchronous"), d,
                                 "tamping_report", "seed %d, layers" % seed)
-        runs.append(d)
-    layers(runs)
-    per_box = {}
-    for d in runs:
-        for box, published, (s0, q0, q1, e) in layer_rows(d):
+        rows = layer_rows(d)
+        tables.append((d, rows))
+        for box, published, (s0, q0, q1, e) in rows:
             # Boxes by kind, not number: the cribs beside the tamped sleeper.
             key = re.sub(r"_\d+(_\d+)?", "", box, count=1)
             per_box.setdefault((key, published), []).append((change(s0, e), change(q0, q1)))
+    for d, rows in tables:
+        print_layers(d, rows)
+
+    def sd(xs):
+        return statistics.stdev(xs) if len(xs) > 1 else float("nan")
+
     print("\n## Mean change by layer over %d quick beds (one cycle each)\n" % seeds)
     print("| box | over the cycle: mean (sd) | in the squeeze: mean (sd) | rises in the squeeze | Shi et al. 2020 |")
     print("|---|---:|---:|---:|---:|")
     for (key, published), values in per_box.items():
         cycle = [v[0] for v in values]
         squeeze = [v[1] for v in values]
-        sd = lambda xs: statistics.stdev(xs) if len(xs) > 1 else float("nan")
         print("| %s | %+.1f %% (%.1f) | %+.1f %% (%.1f) | %d of %d | %s |"
               % (key, statistics.mean(cycle), sd(cycle), statistics.mean(squeeze), sd(squeeze),
-                 sum(1 for x in squeeze if x > 0), len(squeeze),
-                 "%+.2f %%" % SHI_2020[published] if published else ""))
+                 sum(1 for x in squeeze if x > 0), len(squeeze), published_cell(published)))
 
 
 def last_residuals(directory):
