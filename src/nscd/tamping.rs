@@ -17,6 +17,10 @@
 //! 3. **withdraw**: the tines rise back and open by their travel, evenly over the time
 //!    `withdraw_speed` gives the planned depth, ending where they started.
 //!
+//! After the last cycle, with `release`, the sleeper is let down (phase `release`): it
+//! rests on the tamped ballast under its own weight, as the packing's other sleepers
+//! do, and keeps what lift the ballast holds (`sleeper_rise_m` in the summary).
+//!
 //! All along, the tines vibrate along x, `amplitude · sin 2πft`, the two sides in
 //! opposition (as the tine arms of a unit driven by one eccentric shaft).
 //!
@@ -46,6 +50,7 @@
 //! gap = "50 mm"                     # tine to sleeper side at the start
 //! tine_stiffness = "10 MN/m"        # optional: tines that give (default: rigid drive)
 //! cycles = 1
+//! release = "0.2 s"                 # optional: let the sleeper down after the last cycle
 //! ```
 
 use std::path::Path;
@@ -141,6 +146,15 @@ pub struct TampingSpec {
     /// Tamping cycles.
     #[serde(default = "one_cycle")]
     pub cycles: usize,
+    /// After the last cycle, the time the sleeper is let down onto the tamped ballast
+    /// (phase `release`): the lifting clamps open and it rests under its own weight, a
+    /// free body that does not yaw like the packing's other sleepers, and the box under
+    /// it comes down with it. None (the default): it stays held at its lift, as in seed
+    /// 000's cases. A before/after comparison with a published tamping study (Shi et
+    /// al. 2020: +7.56 % in the top layer under the sleeper) needs it: held up, the
+    /// layer it would rest on includes the void the lift opened.
+    #[serde(default)]
+    pub release: Option<Time>,
     /// Compactness and forces every this many steps.
     #[serde(default = "one_cycle")]
     pub sample_every: usize,
@@ -232,6 +246,9 @@ impl Validate for TampingSpec {
         v.non_negative("amplitude", self.amplitude);
         v.non_negative("lift", self.lift);
         v.check("cycles", self.cycles >= 1, "must be at least 1");
+        if let Some(release) = self.release {
+            v.positive("release", release);
+        }
         v.check("sample_every", self.sample_every >= 1, "must be at least 1");
         v.check(
             "squeeze_time",
@@ -250,7 +267,7 @@ impl Validate for TampingSpec {
 /// One phase of the cycle.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Phase {
-    /// `penetrate`, `squeeze` or `withdraw`.
+    /// `penetrate`, `squeeze`, `withdraw`, or `release` (after the last cycle).
     pub name: &'static str,
     /// Cycle number, from 1.
     pub cycle: usize,
@@ -270,6 +287,9 @@ pub struct TampingPlan {
     pub sleeper_number: usize,
     /// Body index of the tamped sleeper.
     pub sleeper: usize,
+    /// The tamped sleeper as the packing built it (dynamic, no yaw), which it becomes
+    /// again when the `release` phase begins; None without a release.
+    pub released: Option<Body>,
     /// The tines (`tine_L1`, `tine_R1`, …: left/right of the sleeper), each with its
     /// pieces' body indices.
     pub tines: Vec<DrivenBody>,
@@ -324,9 +344,17 @@ impl TampingPlan {
         boxes
     }
 
-    /// When the last cycle ends (s).
+    /// When the last phase (the last cycle's withdrawal, or the release) ends (s).
     pub fn end(&self) -> f64 {
         self.phases.last().map_or(0.0, |p| p.end)
+    }
+
+    /// When the sleeper is let down (s; None: it is held to the end).
+    pub fn release_start(&self) -> Option<f64> {
+        self.phases
+            .iter()
+            .find(|p| p.name == "release")
+            .map(|p| p.start)
     }
 
     /// The phase at time `t` (`None` outside every phase).
@@ -400,6 +428,14 @@ pub fn build(
             });
             t += length;
         }
+    }
+    if let Some(release) = spec.release {
+        phases.push(Phase {
+            name: "release",
+            cycle: spec.cycles,
+            start: t,
+            end: t + release.si(),
+        });
     }
 
     // Tines: the left ones (x < sleeper) squeeze along +x; the right ones are the same
@@ -538,9 +574,11 @@ pub fn build(
         }
     }
 
-    // The sleeper: held, lifted during the first penetration.
+    // The sleeper: held, lifted during the first penetration (and let go, as the
+    // packing built it, when the release begins).
     let lift = spec.lift.si();
     let old = &bodies[index];
+    let released = spec.release.map(|_| old.clone());
     let motion = if lift > 0.0 {
         // A trapezoid: from rest, up at v between the ramps, rest at the end; it rises
         // by v (t_pen − ramp) = lift.
@@ -608,6 +646,7 @@ pub fn build(
         period: packing.period(),
         sleeper_number: number,
         sleeper: index,
+        released,
         tines,
         phases,
         boxes,
@@ -739,6 +778,20 @@ pub struct TampingState {
     /// The largest distance of a sprung tine piece from its drive so far (m; zero for
     /// tines that follow their drive).
     pub max_deflection: f64,
+    /// The tamped sleeper's height above its start at the latest step (m).
+    pub rise: f64,
+    /// Compactness in every box and the sleeper's rise when it was let down (None
+    /// before a release and without one).
+    pub withdrawn: Option<Withdrawn>,
+}
+
+/// The state of a tamping run when its sleeper is let down ([`TampingSpec::release`]).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Withdrawn {
+    /// Compactness in every box.
+    pub compactness: Vec<f64>,
+    /// The sleeper's height above its start (m): the lift.
+    pub rise: f64,
 }
 
 impl TampingMonitor {
@@ -762,6 +815,8 @@ impl TampingMonitor {
                 last_lift: vec![0.0; tines],
                 reached: vec![[0.0; 2]; tines],
                 max_deflection: 0.0,
+                rise: 0.0,
+                withdrawn: None,
             },
         }
     }
@@ -776,9 +831,25 @@ impl TampingMonitor {
     /// holds. The velocity is the constant part of the tine's prescribed motion (the
     /// vibration is added to it), so with θ = 1 the travel recorded here is exactly the
     /// one the step makes.
+    ///
+    /// When the release begins the held sleeper becomes the free body the packing
+    /// built, where it is and as fast as it goes (at rest: its lift ended long before),
+    /// so a run resumed during the release rebuilds it with the checkpoint's state
+    /// (its turning too, which a held sleeper does not have).
     pub fn actuate(&mut self, time: f64, dt: f64, bodies: &mut [Body]) {
         let plan = &self.plan;
         let phase = plan.phase_at(time + 0.5 * dt);
+        if let (Some(free), Some(start)) = (&plan.released, plan.release_start()) {
+            let held = &bodies[plan.sleeper];
+            if time + 0.5 * dt > start && !held.is_dynamic() {
+                let mut body = free.clone();
+                body.position = held.position;
+                body.orientation = held.orientation;
+                body.velocity = held.velocity;
+                body.angular_velocity = held.angular_velocity;
+                bodies[plan.sleeper] = body;
+            }
+        }
         let st = &mut self.state;
         for (k, tine) in plan.tines.iter().enumerate() {
             let (across, down) = match phase {
@@ -831,7 +902,15 @@ impl TampingMonitor {
                 .iter()
                 .map(|(n, _)| format!("compactness_{n}")),
         );
-        columns.extend(["sleeper_fx_N", "sleeper_fy_N", "sleeper_fz_N"].map(String::from));
+        columns.extend(
+            [
+                "sleeper_fx_N",
+                "sleeper_fy_N",
+                "sleeper_fz_N",
+                "sleeper_rise_m",
+            ]
+            .map(String::from),
+        );
         for t in &self.plan.tines {
             columns.extend(
                 [
@@ -848,9 +927,11 @@ impl TampingMonitor {
         columns
     }
 
-    /// Records the step that ended at `time` (`sample`: measure the compactness) and
-    /// returns the CSV row: time, cycle, phase (1 penetrate, 2 squeeze, 3 withdraw, 0
-    /// after the last cycle), compactness per box, forces.
+    /// Records the step that ended at `time` (`sample`: measure the compactness; the
+    /// step that ends as the release begins is always measured) and returns the CSV
+    /// row: time, cycle, phase (1 penetrate, 2 squeeze, 3 withdraw, 4 release, 0 after
+    /// the last phase), compactness per box, the forces on the sleeper and its height
+    /// above its start, the tines' forces and travel.
     pub fn record(
         &mut self,
         time: f64,
@@ -860,12 +941,24 @@ impl TampingMonitor {
         dt: f64,
     ) -> Vec<f64> {
         let phase = self.plan.phase_at(time).cloned();
-        if sample {
+        let letting_go = self.state.withdrawn.is_none()
+            && self
+                .plan
+                .release_start()
+                .is_some_and(|start| time > start - 0.5 * dt);
+        if sample || letting_go {
             self.state.latest = stone_compactness(
                 bodies,
                 &self.plan.boxes_now(bodies),
                 self.plan.period.as_ref(),
             );
+        }
+        self.state.rise = bodies[self.plan.sleeper].position.z - self.plan.sleeper_start_z;
+        if letting_go {
+            self.state.withdrawn = Some(Withdrawn {
+                compactness: self.state.latest.clone(),
+                rise: self.state.rise,
+            });
         }
         let tamped = self.state.latest[self.plan.tamped_box];
         if let Some(p) = &phase {
@@ -885,11 +978,12 @@ impl TampingMonitor {
             phase.as_ref().map_or(0.0, |p| match p.name {
                 "penetrate" => 1.0,
                 "squeeze" => 2.0,
-                _ => 3.0,
+                "withdraw" => 3.0,
+                _ => 4.0,
             }),
         ];
         row.extend(&self.state.latest);
-        row.extend([sleeper.x, sleeper.y, sleeper.z]);
+        row.extend([sleeper.x, sleeper.y, sleeper.z, self.state.rise]);
         let mut squeezing = 0.0;
         for (k, t) in self.plan.tines.iter().enumerate() {
             let f = force_on(&t.pieces, contacts, dt);
@@ -929,8 +1023,10 @@ impl TampingMonitor {
 
     /// The summary's tamping figures: `compactness_before` and `compactness_after`
     /// under the tamped sleeper (and their relative change), every box before and
-    /// after, the compactness at the start and end of each squeeze, the phases, and
-    /// the largest forces.
+    /// after (and `withdrawn`, when the sleeper was let down; null otherwise), the
+    /// compactness at the start and end of each squeeze, the phases, the sleeper's
+    /// height above its start at the end (`sleeper_rise_m`: the lift the tamped
+    /// ballast kept, once released) and when it was let down, and the largest forces.
     pub fn figures(&self, summary: crate::scene::Summary) -> crate::scene::Summary {
         let k = self.plan.tamped_box;
         let (before, after) = (self.state.before[k], self.state.latest[k]);
@@ -946,6 +1042,7 @@ impl TampingMonitor {
                     "max_m": [bx.max.x, bx.max.y, bx.max.z],
                     "before": self.state.before[i],
                     "after": self.state.latest[i],
+                    "withdrawn": self.state.withdrawn.as_ref().map(|w| w.compactness[i]),
                 })
             })
             .collect();
@@ -987,6 +1084,15 @@ impl TampingMonitor {
             .figure("compactness_before", before)
             .figure("compactness_after", after)
             .figure("compactness_change_relative", (after - before) / before)
+            .figure(
+                "compactness_withdrawn",
+                self.state.withdrawn.as_ref().map(|w| w.compactness[k]),
+            )
+            .figure("sleeper_rise_m", self.state.rise)
+            .figure(
+                "sleeper_rise_withdrawn_m",
+                self.state.withdrawn.as_ref().map(|w| w.rise),
+            )
             .figure("compactness", boxes)
             .figure("compactness_squeeze", squeezes)
             .figure("tamping_phases", phases)
