@@ -147,11 +147,12 @@ def load(directory):
 
 
 def shade_squeeze(axes, fig):
-    """Shades the squeeze phases of a run (its summary's `figures`) on every axis."""
+    """Shades the squeeze phases of a run (its summary's `figures`) on every axis, and
+    its release (the sleeper let down) more lightly."""
     for ax in axes:
         for p in fig["tamping_phases"]:
-            if p["name"] == "squeeze":
-                ax.axvspan(p["start_s"], p["end_s"], color="0.9")
+            if p["name"] in ("squeeze", "release"):
+                ax.axvspan(p["start_s"], p["end_s"], color="0.9" if p["name"] == "squeeze" else "0.96")
 
 
 def chart(directory, out):
@@ -178,16 +179,19 @@ def chart(directory, out):
         ax1.plot(t, [r[c] for r in rows], label=label, **style)
     ax1.set_ylabel("solid fraction")
     ax1.set_title(
-        "tamping %s: under sleeper %d %.3f -> %.3f (squeeze shaded)"
+        "tamping %s: under sleeper %d %.3f -> %.3f (squeeze shaded, release lighter)"
         % (summary.get("preset") or "", fig["tamped_sleeper"],
            fig["compactness_before"], fig["compactness_after"])
     )
     ax1.legend(fontsize=7, loc="lower left")
     for name in tines:
         ax2.plot(t, [1e3 * r[name + "_travel_m"] for r in rows], label=name)
+    if "sleeper_rise_m" in rows[0]:
+        ax2.plot(t, [1e3 * r["sleeper_rise_m"] for r in rows], "k", lw=1.5,
+                 label="sleeper %d rise" % fig["tamped_sleeper"])
         sign = 1.0 if name.startswith("tine_R") else -1.0
         ax3.plot(t, [sign * r[name + "_fx_N"] / 1e3 for r in rows], lw=0.6, label=name)
-    ax2.set_ylabel("squeeze travel (mm)")
+    ax2.set_ylabel("squeeze travel, sleeper rise (mm)")
     ax2.legend(fontsize=7)
     ax3.set_ylabel("squeezing force (kN)")
     ax3.set_yscale("symlog", linthresh=1.0)
@@ -718,12 +722,14 @@ SHI_2020 = {("under", "_top"): 7.56, ("crib", ""): -34.77, ("crib", "_top"): -34
 
 def layer_marks(directory):
     """The compactness of every box of a tamping run at the start, the first squeeze's
-    start and end and the last row, as {box: [four values]} (from tamping.csv)."""
+    start and end, the end of the last withdrawal and the last row (after the release
+    when the sleeper was let down), as {box: [five values]} (from tamping.csv)."""
     _, rows = load(directory)
     squeeze = [r for r in rows if r["phase"] == 2.0]
-    if not squeeze:
-        sys.exit("tamping_report: %s: no squeeze in tamping.csv" % directory)
-    marks = (rows[0], squeeze[0], squeeze[-1], rows[-1])
+    withdraw = [r for r in rows if r["phase"] == 3.0]
+    if not squeeze or not withdraw:
+        sys.exit("tamping_report: %s: no squeeze or no withdrawal in tamping.csv" % directory)
+    marks = (rows[0], squeeze[0], squeeze[-1], withdraw[-1], rows[-1])
     boxes = [c[len("compactness_"):] for c in rows[0] if c.startswith("compactness_")]
     if not any(b.endswith("_top") for b in boxes):
         sys.exit("tamping_report: %s: no layer boxes (..._top): run by an older ballast-nscd"
@@ -733,7 +739,7 @@ def layer_marks(directory):
 
 def layer_rows(directory):
     """The layer boxes of a run (the under-sleeper box and the cribs beside the tamped
-    sleeper, whole and by halves), as (box, published change in % or None, four marks)."""
+    sleeper, whole and by halves), as (box, published change in % or None, five marks)."""
     marks = layer_marks(directory)
     halved = [b[: -len("_top")] for b in marks if b.endswith("_top")]
     out = []
@@ -748,18 +754,40 @@ def change(a, b):
     return 100.0 * (b - a) / a
 
 
+def changes(marks):
+    """Over the cycle (start to end), in the squeeze, and in the release (end of the
+    withdrawal to end), in %."""
+    s0, q0, q1, w, e = marks
+    return change(s0, e), change(q0, q1), change(w, e)
+
+
 def published_cell(value):
     return "%+.2f %%" % value if value is not None else ""
+
+
+def released(directory):
+    """The sleeper's rise (mm) when let down and at the end, or None if it was held."""
+    f = read_summary(directory)["figures"]
+    if f.get("sleeper_rise_withdrawn_m") is None:
+        return None
+    return 1e3 * f["sleeper_rise_withdrawn_m"], 1e3 * f["sleeper_rise_m"]
 
 
 def print_layers(directory, rows):
     """Prints the layer table of one run (its `layer_rows`)."""
     print("\n## Compactness by layer: %s\n" % directory)
-    print("| box | start | squeeze start | squeeze end | end | over the cycle | in the squeeze | Shi et al. 2020 |")
-    print("|---|---:|---:|---:|---:|---:|---:|---:|")
-    for box, published, (s0, q0, q1, e) in rows:
-        print("| %s | %.4f | %.4f | %.4f | %.4f | %+.1f %% | %+.1f %% | %s |"
-              % (box, s0, q0, q1, e, change(s0, e), change(q0, q1), published_cell(published)))
+    rise = released(directory)
+    if rise:
+        print("The sleeper let down from %.1f mm above its start ends %.1f mm above it.\n" % rise)
+    else:
+        print("The sleeper is held lifted to the end (no tamping.release).\n")
+    print("| box | start | squeeze start | squeeze end | withdrawn | end | over the cycle | in the squeeze | in the release | Shi et al. 2020 |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for box, published, marks in rows:
+        cycle, squeeze, release = changes(marks)
+        print("| %s | %.4f | %.4f | %.4f | %.4f | %.4f | %+.1f %% | %+.1f %% | %s | %s |"
+              % ((box,) + tuple(marks) + (cycle, squeeze, "%+.1f %%" % release if rise else "",
+                                          published_cell(published))))
 
 
 def layers(directories):
@@ -774,6 +802,7 @@ def layers_ensemble(pack, nscd, seeds, out):
     os.makedirs(out, exist_ok=True)
     per_box = {}
     tables = []
+    rises = []
     for seed in range(1, seeds + 1):
         packing, _ = ensemble_tools.pack_bed(pack, "quick", seed, out, "tamping_report")
         d = os.path.join(out, "layers-%d" % seed)
@@ -781,24 +810,31 @@ def layers_ensemble(pack, nscd, seeds, out):
                                 "tamping_report", "seed %d, layers" % seed)
         rows = layer_rows(d)
         tables.append((d, rows))
-        for box, published, (s0, q0, q1, e) in rows:
+        rises.append(released(d))
+        for box, published, marks in rows:
             # Boxes by kind, not number: the cribs beside the tamped sleeper.
             key = re.sub(r"_\d+(_\d+)?", "", box, count=1)
-            per_box.setdefault((key, published), []).append((change(s0, e), change(q0, q1)))
+            per_box.setdefault((key, published), []).append(changes(marks))
     for d, rows in tables:
         print_layers(d, rows)
 
     def sd(xs):
         return statistics.stdev(xs) if len(xs) > 1 else float("nan")
 
+    def cell(xs):
+        return "%+.1f %% (%.1f)" % (statistics.mean(xs), sd(xs))
+
     print("\n## Mean change by layer over %d quick beds (one cycle each)\n" % seeds)
-    print("| box | over the cycle: mean (sd) | in the squeeze: mean (sd) | rises in the squeeze | Shi et al. 2020 |")
-    print("|---|---:|---:|---:|---:|")
+    if all(rises):
+        kept = [r[1] for r in rises]
+        print("The sleeper, let down from its lift, kept %.1f mm of it on average (sd %.1f; "
+              "%.1f to %.1f mm).\n" % (statistics.mean(kept), sd(kept), min(kept), max(kept)))
+    print("| box | over the cycle: mean (sd) | in the squeeze: mean (sd) | in the release: mean (sd) | rises in the squeeze | Shi et al. 2020 |")
+    print("|---|---:|---:|---:|---:|---:|")
     for (key, published), values in per_box.items():
-        cycle = [v[0] for v in values]
-        squeeze = [v[1] for v in values]
-        print("| %s | %+.1f %% (%.1f) | %+.1f %% (%.1f) | %d of %d | %s |"
-              % (key, statistics.mean(cycle), sd(cycle), statistics.mean(squeeze), sd(squeeze),
+        cycle, squeeze, release = ([v[i] for v in values] for i in range(3))
+        print("| %s | %s | %s | %s | %d of %d | %s |"
+              % (key, cell(cycle), cell(squeeze), cell(release) if all(rises) else "",
                  sum(1 for x in squeeze if x > 0), len(squeeze), published_cell(published)))
 
 
