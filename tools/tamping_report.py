@@ -13,10 +13,14 @@
   tamping_report.py layers DIR... | layers --pack BIN --nscd BIN [--seeds N] [--out DIR]
       the compactness by layer (the halves `..._top` and `..._bottom` of the box under
       the tamped sleeper and of the cribs beside it) at the start, the squeeze's start
-      and end and the end of each run DIR, beside Shi et al. (2020): +7.56 % in the top
+      and end, the end of the withdrawal and the end (after the release, when the
+      sleeper was let down) of each run DIR, beside Shi et al. (2020): +7.56 % in the top
       layer under the sleeper, -34.77 % in the crib; with --pack and --nscd, over the
       quick tamping (synchronous DDM) on the quick beds of seeds 1..N (OUT/layers-SEED,
       the beds shared with the ensemble studies), with the mean change per layer.
+  tamping_report.py balanced-scene N
+      writes the copy of scenes/tamping.toml whose [ddm] cuts N slabs balanced by
+      contact count (the bench's version 4 with N = 4) and prints its path.
   tamping_report.py bench --nscd BIN --preset P --steps N --out DIR [--repeat R] [--fresh 1]
                     [--versions 1,2,3,4,5] [--interleave K]
       runs scenes/tamping.toml --preset P for its first N steps in the three versions
@@ -920,6 +924,9 @@ def main(argv):
               opts.get("--fresh", "0") == "1",
               parse_versions(opts.get("--versions", ",".join(str(v) for v in VERSIONS))),
               int(opts.get("--interleave", "0")))
+        return 0
+    if len(argv) == 2 and argv[0] == "balanced-scene":
+        print(balanced_scene(int(argv[1])))
         return 0
     if len(argv) == 2 and argv[0] == "table":
         table(argv[1])
