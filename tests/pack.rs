@@ -1264,9 +1264,12 @@ fn tamping_the_quick_bed_packs_ballast_under_the_lifted_sleeper() {
     assert_eq!(seen, [1.0, 2.0, 3.0, 4.0, 0.0], "phases in order");
     // The release (the preset's tamping.release): the sleeper is let go where the lift
     // put it and ends at rest on the tamped ballast, which then carries its weight (a
-    // 0.15 × 0.3 × 0.12 m concrete block, 2400 kg/m³: 127 N). The 10 % allows for the
-    // unconverged solve's force noise (50 sweeps; the last steps on the bed of seed 1,
-    // 2026-12-08: 124–130 N).
+    // 0.15 × 0.3 × 0.12 m concrete block, 2400 kg/m³: 127 N), averaged over the last 25
+    // steps (20 ms) to smooth the unconverged solve's step-to-step noise (50 sweeps:
+    // 124–130 N a step on the bed of seed 1). Over those 20 ms the mean force differs
+    // from the weight by the sleeper's momentum change over them, 13 kg × a speed
+    // change of the order of the creep bound below (10 mm/s) / 20 ms = 6.5 N, 5 %. On twelve quick beds
+    // (2026-12-08) the mean was within 0.6 % and the creep at most 0.11 mm.
     let lifted = figure(&f, "sleeper_rise_withdrawn_m");
     assert!((lifted - 0.02).abs() < 1e-5, "let go at {lifted} m");
     let rise = col("sleeper_rise_m");
@@ -1274,7 +1277,7 @@ fn tamping_the_quick_bed_packs_ballast_under_the_lifted_sleeper() {
     let weight = 2400.0 * 0.15 * 0.3 * 0.12 * 9.81;
     let carried = last.iter().map(|r| r[col("sleeper_fz_N")]).sum::<f64>() / 25.0;
     assert!(
-        (carried / weight - 1.0).abs() < 0.1,
+        (carried / weight - 1.0).abs() < 0.05,
         "the ballast carries {carried} N of the sleeper's {weight} N"
     );
     let creep = (last[24][rise] - last[0][rise]).abs();
