@@ -1,8 +1,9 @@
 """Chart and bench table of ballast-nscd tamping runs (issue #7; seed 000 §3-4).
 
   tamping_report.py chart DIR OUT.png
-      compactness per control box, tine travel and squeezing forces against time,
-      from DIR/tamping.csv and DIR/summary.json, the phases shaded.
+      compactness per control box, tine travel and the tamped sleeper's rise, and
+      squeezing forces against time, from DIR/tamping.csv and DIR/summary.json, the
+      squeeze and the release shaded.
   tamping_report.py drives RIGID_DIR SPRUNG_DIR OUT.png
       the quick tamping with rigid tines (the seed's kinematic drive) beside the same
       run with tines that give (`tamping.tine_stiffness`): compactness under the
