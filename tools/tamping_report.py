@@ -252,7 +252,7 @@ def drives(rigid_dir, sprung_dir, out):
         ax3.plot([r["time_s"] for r in rows], [1e3 * r[name + "_deflection_m"] for r in rows],
                  lw=0.8, label=name)
     ax1.set_ylabel("solid fraction under sleeper %d" % fig["tamped_sleeper"])
-    ax1.set_title("tamping %s: rigid tines against tines that give (squeeze shaded)"
+    ax1.set_title("tamping %s: rigid tines against tines that give (squeeze shaded, release lighter)"
                   % (summary.get("preset") or ""))
     ax1.legend(fontsize=7, loc="lower left")
     ax2.set_ylabel("stones' kinetic energy (J)")
